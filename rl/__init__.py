@@ -1,0 +1,1 @@
+"""Reinforcement-learning agents and their training loops (built on ``swiptopt``'s model)."""

@@ -1,0 +1,107 @@
+"""SWIPT at the sensor node: induced voltage, available power, power splitting, harvesting.
+
+Paper eqs. 12-13 and SPEC 3.2. The paper writes the SNR where the received level belongs in
+the induced-voltage formula; the derivation it cites (Bereketli & Bilgen 2012) uses the
+received level RL = SL - TL, and so do we.
+
+Power splitting: a fraction ``split_ratio`` (alpha) of the received signal goes to the
+information decoder, the rest (1 - alpha) to the harvester. Noise is not split, so the
+decoder sees alpha times the SNR.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+HarvesterModel = Literal["linear", "logistic"]
+
+#: Logistic harvester defaults (Boshkovska et al. 2015, fitted to a measured harvesting
+#: circuit): saturation power M in W, steepness a in 1/W, turning point b in W. They are a
+#: documented stand-in; an acoustic harvester should be fitted to its own measurements.
+LOGISTIC_MAX_W = 0.024
+LOGISTIC_A_PER_W = 150.0
+LOGISTIC_B_W = 0.014
+
+
+def _split(split_ratio: ArrayLike) -> np.ndarray:
+    alpha = np.asarray(split_ratio, dtype=float)
+    if np.any((alpha < 0) | (alpha > 1)) or np.any(np.isnan(alpha)):
+        raise ValueError(f"split_ratio must lie in [0, 1], got {split_ratio!r}")
+    return alpha
+
+
+def induced_voltage_v(received_level_db: ArrayLike, sensitivity_db: ArrayLike) -> np.ndarray:
+    """RMS open-circuit voltage of the node's hydrophone, V = 10^((RL + rho) / 20) (eq. 12).
+
+    ``received_level_db`` in dB re 1 uPa; ``sensitivity_db`` (rho) in dB re 1 V/uPa.
+    """
+    return 10.0 ** ((np.asarray(received_level_db, float) + np.asarray(sensitivity_db, float)) / 20.0)
+
+
+def available_power_w(
+    received_level_db: ArrayLike,
+    sensitivity_db: ArrayLike,
+    load_ohm: ArrayLike,
+    n_elements: ArrayLike = 1,
+) -> np.ndarray:
+    """Electrical power available to a matched load, P_av = n V^2 / (4 R_p), W (eq. 13)."""
+    load = np.asarray(load_ohm, dtype=float)
+    if np.any(~(load > 0)):
+        raise ValueError(f"load_ohm must be > 0, got {load_ohm!r}")
+    v = induced_voltage_v(received_level_db, sensitivity_db)
+    return np.asarray(n_elements, dtype=float) * v**2 / (4.0 * load)
+
+
+def information_snr_linear(snr_linear: ArrayLike, split_ratio: ArrayLike) -> np.ndarray:
+    """SNR at the information decoder after splitting: alpha * SNR (noise is not split)."""
+    return _split(split_ratio) * np.asarray(snr_linear, dtype=float)
+
+
+def logistic_harvest_w(
+    input_power_w: ArrayLike,
+    max_w: float = LOGISTIC_MAX_W,
+    a_per_w: float = LOGISTIC_A_PER_W,
+    b_w: float = LOGISTIC_B_W,
+) -> np.ndarray:
+    """Boshkovska et al. (2015) non-linear harvester, zero at zero input, saturating at M.
+
+    P_h = (M / (1 + exp(-a (P_in - b))) - M Omega) / (1 - Omega), Omega = 1 / (1 + exp(a b)).
+    """
+    p_in = np.asarray(input_power_w, dtype=float)
+    # 1 / (1 + exp(-x)) written as exp(-log(1 + exp(-x))) so that steep curves do not overflow
+    omega = np.exp(-np.logaddexp(0.0, a_per_w * b_w))
+    sigmoid = np.exp(-np.logaddexp(0.0, -a_per_w * (p_in - b_w)))
+    return max_w * (sigmoid - omega) / (1.0 - omega)
+
+
+def harvested_power_w(
+    available_power_w: ArrayLike,
+    split_ratio: ArrayLike,
+    efficiency: ArrayLike = 0.5,
+    model: HarvesterModel = "linear",
+    *,
+    logistic_max_w: float = LOGISTIC_MAX_W,
+    logistic_a_per_w: float = LOGISTIC_A_PER_W,
+    logistic_b_w: float = LOGISTIC_B_W,
+) -> np.ndarray:
+    """DC power harvested from the (1 - alpha) share of the received signal, W.
+
+    ``model="linear"``: P_h = eta_ae (1 - alpha) P_av (SPEC 3.2). ``model="logistic"``: the
+    Boshkovska curve of P_in = (1 - alpha) P_av, whose fitted parameters already include the
+    conversion loss (``efficiency`` is not applied). Either way the result is capped at the
+    input power: a fitted curve with arbitrary parameters must not create energy.
+    """
+    p_in = (1.0 - _split(split_ratio)) * np.asarray(available_power_w, dtype=float)
+    if model == "linear":
+        eta = np.asarray(efficiency, dtype=float)
+        if np.any((eta < 0) | (eta > 1)):
+            raise ValueError(f"efficiency must lie in [0, 1], got {efficiency!r}")
+        out = eta * p_in
+    elif model == "logistic":
+        out = logistic_harvest_w(p_in, logistic_max_w, logistic_a_per_w, logistic_b_w)
+    else:
+        raise ValueError(f"model must be 'linear' or 'logistic', got {model!r}")
+    return np.clip(out, 0.0, p_in)

@@ -1,0 +1,189 @@
+"""The link budget of one scenario: the model functions combined for given distances.
+
+This module is where the scenario's parameters meet the physics of ``acoustics``,
+``harvesting`` and ``auv``; the simulator kernel, the coverage analysis, the planners and
+``swiptopt scenario show`` all read their numbers from here, so there is one combination of
+the equations, not one per caller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from swiptopt import acoustics, auv, harvesting
+from swiptopt.scenario import Scenario
+
+#: Distance of the on-axis reference link that defines the energy reward reference, m.
+REFERENCE_DISTANCE_M = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class LinkBudget:
+    """The AUV-to-node link at given distances; arrays have the shape of ``distance_m``."""
+
+    distance_m: np.ndarray
+    source_level_db: float
+    """Projector source level, dB re 1 uPa @ 1 m."""
+    noise_level_db: float
+    """Noise level in the band, dB re 1 uPa."""
+    transmission_loss_db: np.ndarray
+    received_level_db: np.ndarray
+    """RL = SL - TL, dB re 1 uPa."""
+    snr_db: np.ndarray
+    """Link SNR before power splitting, dB; coverage compares it with the threshold."""
+    in_service: np.ndarray
+    """Whether the SNR reaches ``snr_threshold_db`` (bool)."""
+    rate_bps: np.ndarray
+    """Information rate with the split alpha * SNR; zero where out of service."""
+    available_power_w: np.ndarray
+    """Electrical power available at the node's transducer, W."""
+    harvested_power_w: np.ndarray
+    """Harvested DC power with the split (1 - alpha), W; zero where out of service."""
+
+
+def source_level_db(scenario: Scenario) -> float:
+    """Projector source level of the scenario, dB re 1 uPa @ 1 m (SPEC 3.1)."""
+    return float(
+        acoustics.source_level_db(
+            scenario.electrical_power_w, scenario.electroacoustic_efficiency, scenario.directivity_tx_db
+        )
+    )
+
+
+def noise_level_db(scenario: Scenario) -> float:
+    """Noise level over the scenario's band, dB re 1 uPa (SPEC 3.1)."""
+    return float(
+        acoustics.noise_level_db(
+            scenario.frequency_khz,
+            scenario.bandwidth_hz,
+            scenario.shipping,
+            scenario.wind_mps,
+            integrate=scenario.noise_integrated,
+        )
+    )
+
+
+def harvested_power_w(
+    scenario: Scenario, available_power_w: ArrayLike, split_ratio: ArrayLike | None = None
+) -> np.ndarray:
+    """The scenario's harvester applied to ``available_power_w`` (split default: the scenario's)."""
+    return harvesting.harvested_power_w(
+        available_power_w,
+        scenario.split_ratio if split_ratio is None else split_ratio,
+        scenario.harvest_efficiency,
+        scenario.harvester,  # type: ignore[arg-type]
+        logistic_max_w=scenario.logistic_max_w,
+        logistic_a_per_w=scenario.logistic_a_per_w,
+        logistic_b_w=scenario.logistic_b_w,
+    )
+
+
+def link_budget(
+    scenario: Scenario, distance_m: ArrayLike, split_ratio: ArrayLike | None = None
+) -> LinkBudget:
+    """Every quantity of the mean (unfaded) link at ``distance_m`` (any shape), SPEC 3.1-3.2."""
+    alpha = scenario.split_ratio if split_ratio is None else split_ratio
+    d = np.asarray(distance_m, dtype=float)
+    sl = source_level_db(scenario)
+    nl = noise_level_db(scenario)
+    tl = acoustics.transmission_loss_db(d, scenario.frequency_khz, scenario.spreading_k)
+    rl = sl - tl
+    snr = acoustics.snr_db(sl, tl, nl, scenario.directivity_rx_db)
+    ok = snr >= scenario.snr_threshold_db
+    info_snr = harvesting.information_snr_linear(acoustics.db_to_linear(snr), alpha)
+    rate = np.where(ok, scenario.bandwidth_hz * np.log2(1.0 + info_snr), 0.0)
+    p_av = harvesting.available_power_w(rl, scenario.sensitivity_db, scenario.load_ohm, scenario.n_elements)
+    p_h = np.where(ok, harvested_power_w(scenario, p_av, alpha), 0.0)
+    return LinkBudget(d, sl, nl, tl, rl, snr, ok, rate, p_av, p_h)
+
+
+def service_range_m(scenario: Scenario) -> float:
+    """Largest slant distance at which a node is covered: the cone range or the SNR limit.
+
+    SNR falls monotonically with distance, so the threshold distance is found by bisection.
+    """
+    limit = scenario.cone_range_m
+    if link_budget(scenario, limit).in_service:
+        return float(limit)
+    lo, hi = 0.0, limit  # in service at lo (distances clamp to 1 m), not at hi
+    if not link_budget(scenario, 1.0).in_service:
+        return 0.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if link_budget(scenario, mid).in_service:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@dataclass(frozen=True)
+class AuvPower:
+    """The AUV's power draw and per-step energies in still water (SPEC 3.3)."""
+
+    propulsion_w: float
+    hotel_w: float
+    projector_w: float
+    move_energy_j: float
+    """Energy of one move of one cell (propulsion + hotel)."""
+    hover_energy_j: float
+    """Energy of one hover step (hotel + station keeping)."""
+    projector_energy_j: float
+    """Energy of the projector over one step."""
+
+
+def auv_power(scenario: Scenario) -> AuvPower:
+    """Still-water power and step energies of the scenario's AUV."""
+    p_prop = float(
+        auv.propulsion_power_w(
+            scenario.speed_mps,
+            scenario.drag_coefficient,
+            scenario.frontal_area_m2,
+            scenario.water_density_kg_m3,
+            scenario.propulsion_efficiency,
+        )
+    )
+    dt = scenario.step_duration_s
+    return AuvPower(
+        propulsion_w=p_prop,
+        hotel_w=scenario.hotel_power_w,
+        projector_w=scenario.electrical_power_w,
+        move_energy_j=float(auv.move_energy_j(scenario.cell_size_m, scenario.speed_mps, p_prop, scenario.hotel_power_w)),
+        hover_energy_j=float(auv.hover_energy_j(dt, scenario.hotel_power_w, scenario.station_keeping_power_w)),
+        projector_energy_j=scenario.electrical_power_w * dt,
+    )
+
+
+@dataclass(frozen=True)
+class RewardReferences:
+    """The normalisers of the reward (SPEC 4): r = G bits/D_ref + (1-G) J/E_ref - l E_auv/E_move_ref."""
+
+    data_ref_bits: float
+    energy_ref_j: float
+    move_energy_ref_j: float
+
+
+def reward_references(scenario: Scenario) -> RewardReferences:
+    """The scenario's reward references, derived unless overridden.
+
+    ``energy_ref_j`` is what one node harvests in one step on the cone axis at
+    :data:`REFERENCE_DISTANCE_M` with the whole signal sent to the harvester (alpha = 0):
+    independent of ``split_ratio``, so rewards stay comparable across a split-ratio sweep.
+    """
+    data_ref = scenario.data_ref_bits if scenario.data_ref_bits is not None else scenario.data_bits
+    if scenario.energy_ref_j is not None:
+        energy_ref = scenario.energy_ref_j
+    else:
+        p_av = link_budget(scenario, REFERENCE_DISTANCE_M).available_power_w
+        energy_ref = float(harvested_power_w(scenario, p_av, 0.0)) * scenario.step_duration_s
+        if not energy_ref > 0:
+            raise ValueError(
+                "the derived energy_ref_j is 0 (the harvester yields nothing at 10 m): set energy_ref_j"
+            )
+    move_ref = (
+        scenario.move_energy_ref_j if scenario.move_energy_ref_j is not None else auv_power(scenario).move_energy_j
+    )
+    return RewardReferences(float(data_ref), float(energy_ref), float(move_ref))

@@ -1,0 +1,95 @@
+"""Rich renderings of a scenario for the terminal (used by ``swiptopt scenario show``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from rich.table import Table
+
+from swiptopt.link import auv_power, link_budget, reward_references, service_range_m
+from swiptopt.scenario import Scenario
+
+#: Distances of the link-budget table, m.
+BUDGET_DISTANCES_M = (10.0, 30.0, 50.0)
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, tuple) and value and dataclasses.is_dataclass(value[0]):
+        return "; ".join(_fmt_obstacle(o) for o in value)
+    if isinstance(value, tuple) and len(value) > 6:
+        return f"{len(value)} rows"
+    return str(value)
+
+
+def _fmt_obstacle(obstacle: object) -> str:
+    parts = ", ".join(f"{f.name}={getattr(obstacle, f.name)}" for f in dataclasses.fields(obstacle))
+    return f"{type(obstacle).__name__.lower()}({parts})"
+
+
+def scenario_tables(scenario: Scenario) -> list[Table]:
+    """Parameters with units; derived quantities; the link budget; the AUV's power."""
+    params = Table(title=f"Scenario '{scenario.name}'", title_justify="left")
+    params.add_column("parameter")
+    params.add_column("value", justify="right")
+    params.add_column("unit")
+    params.add_column("meaning")
+    for name, unit, doc in Scenario.field_info():
+        value = getattr(scenario, name)
+        params.add_row(name, "default" if value is None else _fmt(value), unit, doc)
+
+    refs = reward_references(scenario)
+    derived = Table(title="Derived", title_justify="left")
+    derived.add_column("quantity")
+    derived.add_column("value", justify="right")
+    derived.add_column("unit")
+    budget = link_budget(scenario, np.asarray(BUDGET_DISTANCES_M))
+    for label, value, unit in (
+        ("grid (x, y, z cells)", " x ".join(map(str, scenario.grid_shape)), ""),
+        ("start cell", str(scenario.resolved_start_cell), "cell"),
+        ("blocked cells", str(int(scenario.blocked_cells.sum())), ""),
+        ("step duration", f"{scenario.step_duration_s:.4g}", "s"),
+        ("bandwidth", f"{scenario.bandwidth_hz:.6g}", "Hz"),
+        ("source level SL", f"{budget.source_level_db:.2f}", "dB re 1 uPa @ 1 m"),
+        ("noise level NL", f"{budget.noise_level_db:.2f}", "dB re 1 uPa"),
+        ("service range (cone or SNR)", f"{service_range_m(scenario):.4g}", "m"),
+        ("reward data reference D_ref", f"{refs.data_ref_bits:.6g}", "bit"),
+        ("reward energy reference E_ref", f"{refs.energy_ref_j:.6g}", "J"),
+        ("reward move reference E_move_ref", f"{refs.move_energy_ref_j:.6g}", "J"),
+    ):
+        derived.add_row(label, value, unit)
+
+    link = Table(title=f"Link budget (split ratio {scenario.split_ratio:g}, mean channel)", title_justify="left")
+    link.add_column("distance (m)", justify="right")
+    for col in ("TL (dB)", "RL (dB re 1 uPa)", "SNR (dB)", "rate (kbit/s)", "available (mW)", "harvested (mW)"):
+        link.add_column(col, justify="right")
+    for i, d in enumerate(BUDGET_DISTANCES_M):
+        link.add_row(
+            f"{d:g}",
+            f"{budget.transmission_loss_db[i]:.2f}",
+            f"{budget.received_level_db[i]:.2f}",
+            f"{budget.snr_db[i]:.2f}",
+            f"{budget.rate_bps[i] / 1e3:.2f}",
+            f"{budget.available_power_w[i] * 1e3:.4g}",
+            f"{budget.harvested_power_w[i] * 1e3:.4g}",
+        )
+
+    power = auv_power(scenario)
+    auv = Table(title="AUV power (still water)", title_justify="left")
+    auv.add_column("quantity")
+    auv.add_column("value", justify="right")
+    auv.add_column("unit")
+    for label, value, unit in (
+        ("propulsion power", power.propulsion_w, "W"),
+        ("hotel load", power.hotel_w, "W"),
+        ("move power (propulsion + hotel)", power.propulsion_w + power.hotel_w, "W"),
+        ("hover power", power.hover_energy_j / scenario.step_duration_s, "W"),
+        ("projector power (while serving)", power.projector_w, "W"),
+        ("energy of one move", power.move_energy_j, "J"),
+        ("energy of one hover step", power.hover_energy_j, "J"),
+        ("projector energy per step", power.projector_energy_j, "J"),
+    ):
+        auv.add_row(label, f"{value:.4g}", unit)
+    return [params, derived, link, auv]

@@ -1,0 +1,643 @@
+"""Scenarios: one frozen, validated configuration of the network, the channel and the AUV.
+
+A :class:`Scenario` holds every parameter of SPEC 3.4 as a flat set of named fields (so
+presets, overrides, TOML files and ``gymnasium.make`` keyword arguments all speak the same
+names). A wrong value fails at construction with a :class:`ScenarioError` that names the
+field, the value and what is allowed. Node positions, initial charges and link failure
+probabilities are drawn from ``layout_seed`` alone, so one scenario is one layout.
+
+Coordinates: x along ``length_m``, y along ``width_m``, z is depth (0 at the surface,
+growing downwards to ``depth_m``). The AUV sits at cell centres of a grid of
+``cell_size_m`` cubes; cell (i, j, k) has its centre at ((i + 1/2) c, (j + 1/2) c, (k + 1/2) c).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from swiptopt.acoustics import THORP_VALID_KHZ
+from swiptopt.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+
+class ScenarioError(ConfigError):
+    """A scenario value is invalid; ``field`` names it (``None`` for file-level problems)."""
+
+
+# --------------------------------------------------------------------------- obstacles
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box obstacle, corners in metres (x, y, depth)."""
+
+    min_m: tuple[float, float, float]
+    max_m: tuple[float, float, float]
+
+    def contains(self, points_m: np.ndarray) -> np.ndarray:
+        """Whether each point (..., 3) lies inside the closed box."""
+        p = np.asarray(points_m, dtype=float)
+        return np.all((p >= np.asarray(self.min_m)) & (p <= np.asarray(self.max_m)), axis=-1)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A spherical obstacle, centre (x, y, depth) and radius in metres."""
+
+    center_m: tuple[float, float, float]
+    radius_m: float
+
+    def contains(self, points_m: np.ndarray) -> np.ndarray:
+        """Whether each point (..., 3) lies inside the closed sphere."""
+        d = np.asarray(points_m, dtype=float) - np.asarray(self.center_m)
+        return np.einsum("...i,...i->...", d, d) <= self.radius_m**2
+
+
+Obstacle = Box | Sphere
+
+_OBSTACLE_KINDS: dict[str, type] = {"box": Box, "sphere": Sphere}
+
+
+def _obstacle_from_mapping(index: int, raw: Any) -> Obstacle:
+    where = f"obstacles[{index}]"
+    if isinstance(raw, (Box, Sphere)):
+        return raw
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(f"{where} must be a table with a 'kind', got {raw!r}", "obstacles")
+    data = dict(raw)
+    kind = data.pop("kind", None)
+    if kind not in _OBSTACLE_KINDS:
+        raise ScenarioError(
+            f"{where}.kind = {kind!r} is not allowed: must be one of {sorted(_OBSTACLE_KINDS)}",
+            "obstacles",
+        )
+    cls = _OBSTACLE_KINDS[kind]
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ScenarioError(
+            f"{where}: unknown key {unknown[0]!r} for a {kind}; allowed keys: {sorted(names)}",
+            "obstacles",
+        )
+    missing = sorted(names - set(data))
+    if missing:
+        raise ScenarioError(f"{where}: a {kind} needs {missing[0]!r}", "obstacles")
+    values = {}
+    for name, value in data.items():
+        if name.endswith("radius_m"):
+            values[name] = _number(f"{where}.{name}", value, "obstacles")
+        else:
+            values[name] = _vector(f"{where}.{name}", value, 3, "obstacles")
+    obstacle = cls(**values)
+    if isinstance(obstacle, Box) and any(a >= b for a, b in zip(obstacle.min_m, obstacle.max_m)):
+        raise ScenarioError(f"{where}: min_m must be below max_m on every axis", "obstacles")
+    if isinstance(obstacle, Sphere) and not obstacle.radius_m > 0:
+        raise ScenarioError(f"{where}.radius_m = {obstacle.radius_m} must be > 0", "obstacles")
+    return obstacle
+
+
+def _obstacle_to_mapping(obstacle: Obstacle) -> dict[str, Any]:
+    kind = next(k for k, cls in _OBSTACLE_KINDS.items() if isinstance(obstacle, cls))
+    out: dict[str, Any] = {"kind": kind}
+    for f in dataclasses.fields(obstacle):
+        value = getattr(obstacle, f.name)
+        out[f.name] = list(value) if isinstance(value, tuple) else value
+    return out
+
+
+# ----------------------------------------------------------------------- value checks
+
+
+def _number(name: str, value: Any, field_name: str | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ScenarioError(f"{name} = {value!r} must be a number", field_name or name)
+    value = float(value)
+    if not math.isfinite(value):
+        raise ScenarioError(f"{name} = {value!r} must be finite", field_name or name)
+    return value
+
+
+def _vector(name: str, value: Any, length: int, field_name: str | None = None) -> tuple[float, ...]:
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != length:
+        raise ScenarioError(f"{name} = {value!r} must be a list of {length} numbers", field_name or name)
+    return tuple(_number(name, v, field_name or name) for v in value)
+
+
+@dataclass(frozen=True)
+class _Spec:
+    """How one scenario field is checked and shown."""
+
+    unit: str = ""
+    doc: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    kind: str = "float"  # float | int | str | bool | vector3 | cell | positions | heightmap | obstacles
+    choices: tuple[str, ...] = ()
+    optional: bool = False  # None is allowed and means "derive a default"
+
+    def allowed(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        lo = "-inf" if self.lo is None else f"{self.lo:g}"
+        hi = "inf" if self.hi is None else f"{self.hi:g}"
+        left = "(" if self.lo_open or self.lo is None else "["
+        right = ")" if self.hi_open or self.hi is None else "]"
+        what = "an integer" if self.kind == "int" else "a number"
+        return f"{what} in {left}{lo}, {hi}{right}"
+
+    def in_range(self, x: float) -> bool:
+        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
+            return False
+        if self.hi is not None and (x > self.hi or (self.hi_open and x == self.hi)):
+            return False
+        return True
+
+
+def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
+    return field(default=default, metadata={"spec": _Spec(unit=unit, doc=doc, **spec)})
+
+
+CHANNELS = ("none", "shadowing", "rician")
+HARVESTERS = ("linear", "logistic")
+
+
+# --------------------------------------------------------------------------- scenario
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Every parameter of one network, channel and AUV (SPEC 3.4); frozen and validated.
+
+    Build with ``Scenario(...)``, :meth:`preset` or :meth:`from_toml`; change with
+    :meth:`replace`. Field names carry their units.
+    """
+
+    name: str = _field("custom", doc="label shown in tables", kind="str")
+
+    # volume and grid
+    length_m: float = _field(100.0, "m", "extent along x", lo=0, lo_open=True, hi=100_000)
+    width_m: float = _field(100.0, "m", "extent along y", lo=0, lo_open=True, hi=100_000)
+    depth_m: float = _field(50.0, "m", "water depth (z grows downwards)", lo=0, lo_open=True, hi=11_000)
+    cell_size_m: float = _field(10.0, "m", "grid cell edge; one AUV step", lo=0, lo_open=True, hi=10_000)
+
+    # nodes
+    n_nodes: int = _field(25, "", "number of sensor nodes", lo=1, hi=10_000, kind="int")
+    layout_seed: int = _field(0, "", "seed of node positions, charges and failure rates", lo=0, hi=2**63 - 1, kind="int")
+    node_positions_m: tuple[tuple[float, float, float], ...] | None = _field(
+        None, "m", "explicit node positions (x, y, depth); default uniform in the volume", kind="positions",
+        optional=True,
+    )
+    data_bits: float = _field(1e5, "bit", "data each node holds to deliver", lo=0, lo_open=True, hi=1e12)
+    storage_capacity_j: float = _field(1.0, "J", "node energy storage capacity", lo=0, lo_open=True, hi=1e9)
+    initial_soc_min: float = _field(0.2, "", "lowest initial state of charge (fraction)", lo=0, hi=1)
+    initial_soc_max: float = _field(0.8, "", "highest initial state of charge (fraction)", lo=0, hi=1)
+    failure_prob_min: float = _field(0.05, "", "lowest per-step link failure probability", lo=0, hi=1)
+    failure_prob_max: float = _field(0.25, "", "highest per-step link failure probability", lo=0, hi=1)
+    idle_drain_w: float = _field(0.0, "W", "node idle power drain", lo=0, hi=1e3)
+    energy_gate_j: float = _field(0.0, "J", "a node below this stored energy cannot transmit (0: off)", lo=0, hi=1e9)
+
+    # acoustics (SPEC 3.1)
+    frequency_khz: float = _field(24.0, "kHz", "carrier frequency", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
+    band_min_khz: float = _field(22.0, "kHz", "lower band edge", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
+    band_max_khz: float = _field(26.0, "kHz", "upper band edge", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
+    spreading_k: float = _field(1.5, "", "spreading factor (1 cylindrical .. 2 spherical)", lo=1, hi=2)
+    shipping: float = _field(0.0, "", "shipping activity factor", lo=0, hi=1)
+    wind_mps: float = _field(10.0, "m/s", "wind speed", lo=0, hi=100)
+    noise_integrated: bool = _field(False, "", "integrate the noise PSD over the band", kind="bool")
+    electrical_power_w: float = _field(1000.0, "W", "projector electrical power", lo=0, lo_open=True, hi=1e6)
+    electroacoustic_efficiency: float = _field(0.5, "", "projector efficiency eta_ea", lo=0, lo_open=True, hi=1)
+    directivity_tx_db: float = _field(0.0, "dB", "projector directivity index", lo=0, hi=60)
+    directivity_rx_db: float = _field(0.0, "dB", "node receiver directivity index", lo=0, hi=60)
+    snr_threshold_db: float = _field(10.0, "dB", "minimum SNR for a link", lo=-50, hi=200)
+
+    # SWIPT at the node (SPEC 3.2)
+    sensitivity_db: float = _field(-170.0, "dB re 1 V/uPa", "hydrophone receive sensitivity", lo=-300, hi=0)
+    load_ohm: float = _field(100.0, "ohm", "matched load resistance R_p", lo=0, lo_open=True, hi=1e9)
+    n_elements: int = _field(1, "", "transducer elements per node", lo=1, hi=10_000, kind="int")
+    harvester: str = _field("linear", "", "harvester model", kind="str", choices=HARVESTERS)
+    harvest_efficiency: float = _field(0.5, "", "acousto-electric efficiency eta_ae (linear model)", lo=0, hi=1)
+    logistic_max_w: float = _field(0.024, "W", "logistic harvester saturation M", lo=0, lo_open=True, hi=1e6)
+    logistic_a_per_w: float = _field(150.0, "1/W", "logistic harvester steepness a", lo=0, lo_open=True, hi=1e9)
+    logistic_b_w: float = _field(0.014, "W", "logistic harvester turning point b", lo=0, hi=1e6)
+
+    # coverage cone (SPEC 3.5)
+    cone_half_angle_deg: float = _field(30.0, "deg", "half-angle of the downward coverage cone", lo=0, lo_open=True, hi=90, hi_open=True)
+    cone_range_m: float = _field(100.0, "m", "slant range limit of the cone", lo=0, lo_open=True, hi=1e6)
+
+    # AUV (SPEC 3.3)
+    start_cell: tuple[int, int, int] | None = _field(None, "cell", "AUV start (i, j, k); default the surface cell at the centre", kind="cell", optional=True)
+    speed_mps: float = _field(1.5, "m/s", "AUV cruise speed through the water", lo=0, lo_open=True, hi=20)
+    drag_coefficient: float = _field(0.3, "", "drag coefficient C_D", lo=0, lo_open=True, hi=10)
+    frontal_area_m2: float = _field(0.028, "m^2", "frontal area A", lo=0, lo_open=True, hi=100)
+    water_density_kg_m3: float = _field(1025.0, "kg/m^3", "sea water density", lo=900, hi=1100)
+    propulsion_efficiency: float = _field(0.5, "", "propulsive efficiency beta", lo=0, lo_open=True, hi=1)
+    hotel_power_w: float = _field(15.0, "W", "hotel load H", lo=0, hi=1e5)
+    station_keeping_power_w: float = _field(0.0, "W", "extra power to hold station", lo=0, hi=1e5)
+    battery_j: float = _field(3.6e6, "J", "AUV battery energy (1 kWh)", lo=0, lo_open=True, hi=1e12)
+    current_mps: tuple[float, float, float] = _field((0.0, 0.0, 0.0), "m/s", "ocean current at the surface (x, y, z)", kind="vector3")
+    current_bottom_mps: tuple[float, float, float] | None = _field(None, "m/s", "current at the bottom; linear in depth between (default: uniform)", kind="vector3", optional=True)
+
+    # MDP (SPEC 4)
+    episode_steps: int = _field(50, "steps", "episode length", lo=1, hi=1_000_000, kind="int")
+    reward_weight: float = _field(0.5, "", "Gamma: weight of data against energy in the reward", lo=0, hi=1)
+    split_ratio: float = _field(0.5, "", "alpha: share of the signal sent to information decoding", lo=0, hi=1)
+    movement_weight: float = _field(0.02, "", "lambda: weight of the AUV energy penalty", lo=0, hi=1e3)
+    data_ref_bits: float | None = _field(None, "bit", "reward data reference (default data_bits)", lo=0, lo_open=True, hi=1e15, optional=True)
+    energy_ref_j: float | None = _field(None, "J", "reward energy reference (default: one step at 10 m on axis)", lo=0, lo_open=True, hi=1e12, optional=True)
+    move_energy_ref_j: float | None = _field(None, "J", "reward move reference (default: one horizontal move)", lo=0, lo_open=True, hi=1e12, optional=True)
+    target_fraction: float = _field(0.5, "", "fraction of collectable data/energy for the steps-to-target metrics", lo=0, lo_open=True, hi=1)
+    channel: str = _field("shadowing", "", "stochastic channel", kind="str", choices=CHANNELS)
+    shadowing_sigma_db: float = _field(3.0, "dB", "log-normal shadowing standard deviation", lo=0, hi=30)
+    rician_k: float = _field(10.0, "", "Rician K factor (linear)", lo=0, hi=1e6)
+
+    # obstacles (SPEC 3.4)
+    obstacles: tuple[Obstacle, ...] = _field((), "", "boxes and spheres", kind="obstacles")
+    seabed_height_m: tuple[tuple[float, ...], ...] | None = _field(
+        None, "m", "seabed height above the bottom on a regular (x, y) grid, bilinear", kind="heightmap",
+        optional=True,
+    )
+
+    # ------------------------------------------------------------------ validation
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            spec: _Spec = f.metadata["spec"]
+            object.__setattr__(self, f.name, _check_field(f.name, getattr(self, f.name), spec))
+        self._check_relations()
+
+    def _check_relations(self) -> None:
+        for axis in ("length_m", "width_m", "depth_m"):
+            ratio = getattr(self, axis) / self.cell_size_m
+            if ratio < 1 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+                raise ScenarioError(
+                    f"{axis} = {getattr(self, axis):g} must be a whole multiple of cell_size_m = "
+                    f"{self.cell_size_m:g}",
+                    axis,
+                )
+        if not self.band_min_khz < self.frequency_khz < self.band_max_khz:
+            raise ScenarioError(
+                f"frequency_khz = {self.frequency_khz:g} must lie inside the band "
+                f"(band_min_khz, band_max_khz) = ({self.band_min_khz:g}, {self.band_max_khz:g})",
+                "frequency_khz",
+            )
+        for low, high in (("initial_soc_min", "initial_soc_max"), ("failure_prob_min", "failure_prob_max")):
+            if getattr(self, low) > getattr(self, high):
+                raise ScenarioError(
+                    f"{low} = {getattr(self, low):g} must not exceed {high} = {getattr(self, high):g}", low
+                )
+        if self.node_positions_m is not None:
+            if len(self.node_positions_m) != self.n_nodes:
+                raise ScenarioError(
+                    f"node_positions_m has {len(self.node_positions_m)} positions but n_nodes = {self.n_nodes}",
+                    "node_positions_m",
+                )
+            p = np.asarray(self.node_positions_m)
+            if np.any(p < 0) or np.any(p > self.extent_m):
+                raise ScenarioError(
+                    f"node_positions_m must lie inside the volume [0, {self.length_m:g}] x "
+                    f"[0, {self.width_m:g}] x [0, {self.depth_m:g}] m",
+                    "node_positions_m",
+                )
+        if self.start_cell is not None:
+            if any(not 0 <= c < n for c, n in zip(self.start_cell, self.grid_shape)):
+                raise ScenarioError(
+                    f"start_cell = {self.start_cell} is outside the grid 0..{tuple(n - 1 for n in self.grid_shape)}",
+                    "start_cell",
+                )
+        if self.seabed_height_m is not None:
+            h = np.asarray(self.seabed_height_m)
+            if h.shape[0] < 2 or h.shape[1] < 2:
+                raise ScenarioError("seabed_height_m needs at least 2 x 2 values", "seabed_height_m")
+            if np.any(h < 0) or np.any(h >= self.depth_m):
+                raise ScenarioError(
+                    f"seabed_height_m values must lie in [0, depth_m = {self.depth_m:g})", "seabed_height_m"
+                )
+        start = self.start_cell_index
+        if self.blocked_cells[start]:
+            raise ScenarioError(
+                f"start_cell = {self.resolved_start_cell} lies inside an obstacle or below the seabed",
+                "start_cell",
+            )
+
+    # ------------------------------------------------------------------ construction
+
+    @classmethod
+    def preset(cls, name: str, **overrides: Any) -> Scenario:
+        """A named preset (``paper``, ``harbour``, ``tiny``) with field overrides."""
+        if name not in PRESETS:
+            raise ScenarioError(f"unknown preset {name!r}: choose one of {sorted(PRESETS)}", "preset")
+        values = {"name": name, **PRESETS[name]}
+        values.update(overrides)
+        return cls.from_dict(values)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> Scenario:
+        """Build from a mapping of field names; a ``preset`` key starts from that preset."""
+        values = dict(values)
+        preset = values.pop("preset", None)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            close = [n for n in names if n.split("_")[0] == unknown[0].split("_")[0]]
+            hint = f" (did you mean {sorted(close)[0]!r}?)" if close else ""
+            raise ScenarioError(f"unknown scenario key {unknown[0]!r}{hint}", unknown[0])
+        if preset is not None:
+            if not isinstance(preset, str):
+                raise ScenarioError(f"preset = {preset!r} must be a preset name", "preset")
+            return cls.preset(preset, **values)
+        return cls(**values)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        """Read a scenario file: top-level field names, optional ``preset``, ``[[obstacles]]``."""
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ScenarioError(f"cannot read scenario file {str(path)!r}: {exc.strerror}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{path}: malformed TOML: {exc}") from None
+        try:
+            return cls.from_dict(data)
+        except ScenarioError as exc:
+            raise ScenarioError(f"{path}: {exc}", exc.field) from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every field as plain TOML-compatible values (``None`` fields omitted)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if value is None:
+                continue
+            if f.name == "obstacles":
+                value = [_obstacle_to_mapping(o) for o in value]
+            elif isinstance(value, tuple):
+                value = [list(v) if isinstance(v, tuple) else v for v in value]
+            out[f.name] = value
+        return out
+
+    def to_toml(self, path: str | Path) -> None:
+        """Write every field, so that :meth:`from_toml` gives back an equal scenario."""
+        import tomli_w
+
+        Path(path).write_text(tomli_w.dumps(self.to_dict()), encoding="utf-8")
+
+    def replace(self, **changes: Any) -> Scenario:
+        """A copy with some fields changed, validated like a new scenario."""
+        names = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - names)
+        if unknown:
+            raise ScenarioError(f"unknown scenario key {unknown[0]!r}", unknown[0])
+        return dataclasses.replace(self, **changes)
+
+    @staticmethod
+    def field_info() -> list[tuple[str, str, str]]:
+        """(name, unit, description) of every field, in declaration order."""
+        return [(f.name, f.metadata["spec"].unit, f.metadata["spec"].doc) for f in dataclasses.fields(Scenario)]
+
+    # ------------------------------------------------------------------ geometry
+
+    @property
+    def extent_m(self) -> np.ndarray:
+        """(length, width, depth) of the volume, m."""
+        return np.array([self.length_m, self.width_m, self.depth_m])
+
+    @property
+    def grid_shape(self) -> tuple[int, int, int]:
+        """Number of cells along x, y and depth."""
+        return tuple(int(round(e / self.cell_size_m)) for e in self.extent_m)  # type: ignore[return-value]
+
+    @property
+    def n_cells(self) -> int:
+        return int(np.prod(self.grid_shape))
+
+    @property
+    def bandwidth_hz(self) -> float:
+        return (self.band_max_khz - self.band_min_khz) * 1000.0
+
+    @property
+    def step_duration_s(self) -> float:
+        """Duration of every step, cell size / AUV speed (SPEC 4)."""
+        return self.cell_size_m / self.speed_mps
+
+    @cached_property
+    def cell_centers_m(self) -> np.ndarray:
+        """Centres of all cells, (n_cells, 3), in the order of :meth:`cell_index`."""
+        idx = np.indices(self.grid_shape).reshape(3, -1).T
+        return (idx + 0.5) * self.cell_size_m
+
+    def cell_index(self, cell: tuple[int, int, int] | np.ndarray) -> int | np.ndarray:
+        """Flat index of cell (i, j, k) (C order over ``grid_shape``)."""
+        return np.ravel_multi_index(tuple(np.asarray(cell).T), self.grid_shape)
+
+    def cell_of_index(self, index: int | np.ndarray) -> np.ndarray:
+        """(i, j, k) of flat cell indices."""
+        return np.stack(np.unravel_index(index, self.grid_shape), axis=-1)
+
+    @property
+    def resolved_start_cell(self) -> tuple[int, int, int]:
+        """The start cell; by default the surface cell at the centre of the area."""
+        if self.start_cell is not None:
+            return self.start_cell
+        nx, ny, _ = self.grid_shape
+        return (nx // 2, ny // 2, 0)
+
+    @property
+    def start_cell_index(self) -> int:
+        return int(self.cell_index(self.resolved_start_cell))
+
+    def seabed_depth_m(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+        """Depth of the seabed under (x, y), m (``depth_m`` where no height map is set)."""
+        x_m, y_m = np.asarray(x_m, float), np.asarray(y_m, float)
+        if self.seabed_height_m is None:
+            return np.full(np.broadcast(x_m, y_m).shape, self.depth_m)
+        h = np.asarray(self.seabed_height_m)
+        gx = np.clip(x_m / self.length_m * (h.shape[0] - 1), 0, h.shape[0] - 1)
+        gy = np.clip(y_m / self.width_m * (h.shape[1] - 1), 0, h.shape[1] - 1)
+        i0 = np.minimum(np.floor(gx).astype(int), h.shape[0] - 2)
+        j0 = np.minimum(np.floor(gy).astype(int), h.shape[1] - 2)
+        tx, ty = gx - i0, gy - j0
+        height = (
+            h[i0, j0] * (1 - tx) * (1 - ty)
+            + h[i0 + 1, j0] * tx * (1 - ty)
+            + h[i0, j0 + 1] * (1 - tx) * ty
+            + h[i0 + 1, j0 + 1] * tx * ty
+        )
+        return self.depth_m - height
+
+    def is_blocked(self, points_m: np.ndarray) -> np.ndarray:
+        """Whether points (..., 3) are inside an obstacle or below the seabed."""
+        p = np.asarray(points_m, dtype=float)
+        blocked = p[..., 2] > self.seabed_depth_m(p[..., 0], p[..., 1])
+        for obstacle in self.obstacles:
+            blocked |= obstacle.contains(p)
+        return blocked
+
+    @cached_property
+    def blocked_cells(self) -> np.ndarray:
+        """(n_cells,) bool: the cell centre is inside an obstacle or below the seabed."""
+        return self.is_blocked(self.cell_centers_m)
+
+    def current_at_mps(self, depth_m: np.ndarray) -> np.ndarray:
+        """Current velocity (..., 3) at the given depths, linear between surface and bottom."""
+        d = np.asarray(depth_m, dtype=float)[..., None]
+        top = np.asarray(self.current_mps)
+        bottom = top if self.current_bottom_mps is None else np.asarray(self.current_bottom_mps)
+        return top + (bottom - top) * (d / self.depth_m)
+
+    # ------------------------------------------------------------------ layout
+
+    @cached_property
+    def layout(self) -> NodeLayout:
+        """The node layout drawn from ``layout_seed`` (or the explicit positions)."""
+        pos_seq, soc_seq, fail_seq = np.random.SeedSequence(self.layout_seed).spawn(3)
+        if self.node_positions_m is not None:
+            positions = np.asarray(self.node_positions_m, dtype=float)
+        else:
+            positions = _uniform_free_points(self, self.n_nodes, np.random.default_rng(pos_seq))
+        capacity = np.full(self.n_nodes, self.storage_capacity_j)
+        soc = np.random.default_rng(soc_seq).uniform(self.initial_soc_min, self.initial_soc_max, self.n_nodes)
+        fail = np.random.default_rng(fail_seq).uniform(self.failure_prob_min, self.failure_prob_max, self.n_nodes)
+        return NodeLayout(
+            positions_m=positions,
+            data_bits=np.full(self.n_nodes, self.data_bits),
+            capacity_j=capacity,
+            initial_energy_j=soc * capacity,
+            failure_prob=fail,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class NodeLayout:
+    """Per-node arrays of one scenario, all of shape (n_nodes,) or (n_nodes, 3)."""
+
+    positions_m: np.ndarray
+    data_bits: np.ndarray
+    capacity_j: np.ndarray
+    initial_energy_j: np.ndarray
+    failure_prob: np.ndarray
+
+
+def _uniform_free_points(scenario: Scenario, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform in the free water of the volume (rejection sampling)."""
+    points = np.empty((0, 3))
+    for _ in range(1000):
+        batch = rng.uniform(0.0, 1.0, (max(2 * n, 16), 3)) * scenario.extent_m
+        points = np.concatenate([points, batch[~scenario.is_blocked(batch)]])
+        if len(points) >= n:
+            return points[:n]
+    raise ScenarioError("the obstacles leave no free water to place nodes in", "obstacles")
+
+
+def _check_field(name: str, value: Any, spec: _Spec) -> Any:
+    kind = spec.kind
+    if value is None:
+        if spec.optional:
+            return None
+        raise ScenarioError(f"{name} must be set: {spec.doc}", name)
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ScenarioError(f"{name} = {value!r} must be a string", name)
+        if spec.choices and value not in spec.choices:
+            raise ScenarioError(f"{name} = {value!r} is not allowed: must be {spec.allowed()}", name)
+        return value
+    if kind == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise ScenarioError(f"{name} = {value!r} must be true or false", name)
+        return bool(value)
+    if kind == "vector3":
+        return _vector(name, value, 3)
+    if kind == "cell":
+        if (
+            not isinstance(value, (list, tuple, np.ndarray))
+            or len(value) != 3
+            or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in value)
+        ):
+            raise ScenarioError(f"{name} = {value!r} must be three integers (i, j, k)", name)
+        return tuple(int(v) for v in value)
+    if kind == "positions":
+        if not isinstance(value, (list, tuple, np.ndarray)):
+            raise ScenarioError(f"{name} must be a list of (x, y, depth) triples", name)
+        return tuple(_vector(name, p, 3) for p in value)
+    if kind == "heightmap":
+        if not isinstance(value, (list, tuple, np.ndarray)) or not value:
+            raise ScenarioError(f"{name} must be a 2-D list of heights", name)
+        rows = tuple(tuple(_number(name, v) for v in row) if isinstance(row, (list, tuple, np.ndarray)) else None for row in value)
+        if any(r is None for r in rows) or len({len(r) for r in rows}) != 1:  # type: ignore[arg-type]
+            raise ScenarioError(f"{name} must be a rectangular 2-D list of heights", name)
+        return rows
+    if kind == "obstacles":
+        if not isinstance(value, (list, tuple)):
+            raise ScenarioError(f"{name} must be a list of obstacle tables", name)
+        return tuple(_obstacle_from_mapping(i, o) for i, o in enumerate(value))
+    # numbers
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            if isinstance(value, (float, np.floating)) and float(value).is_integer():
+                value = int(value)
+            else:
+                raise ScenarioError(f"{name} = {value!r} is not allowed: must be {spec.allowed()}", name)
+        value = int(value)
+    else:
+        value = _number(name, value)
+    if not spec.in_range(value):
+        raise ScenarioError(f"{name} = {value!r} is out of range: must be {spec.allowed()}", name)
+    return value
+
+
+# ---------------------------------------------------------------------------- presets
+
+#: The presets as overrides of the defaults above. ``paper`` is the paper's Table I where
+#: that is consistent and the SPEC's documented choices elsewhere; ``harbour`` adds
+#: obstacles, a sloping seabed and a tidal current, where path planning matters; ``tiny``
+#: is a deterministic instance small enough for an exact optimum.
+PRESETS: dict[str, dict[str, Any]] = {
+    "paper": {},
+    "harbour": {
+        "length_m": 200.0,
+        "width_m": 200.0,
+        "depth_m": 40.0,
+        "n_nodes": 20,
+        "episode_steps": 120,
+        "shipping": 0.8,
+        "wind_mps": 5.0,
+        "current_mps": (0.3, 0.1, 0.0),
+        "current_bottom_mps": (0.1, 0.0, 0.0),
+        "obstacles": (
+            # a pier on pilings along one side, from the surface down to the bottom
+            Box(min_m=(0.0, 90.0, 0.0), max_m=(60.0, 110.0, 40.0)),
+            # a moored vessel's hull near the surface
+            Box(min_m=(120.0, 40.0, 0.0), max_m=(160.0, 60.0, 8.0)),
+            # a wreck on the bottom
+            Sphere(center_m=(140.0, 150.0, 40.0), radius_m=15.0),
+        ),
+        # the seabed rises towards the quay at x = 0
+        "seabed_height_m": ((12.0, 12.0, 12.0), (4.0, 4.0, 4.0), (0.0, 0.0, 0.0)),
+    },
+    "tiny": {
+        "length_m": 30.0,
+        "width_m": 30.0,
+        "depth_m": 20.0,
+        "n_nodes": 3,
+        "episode_steps": 12,
+        "channel": "none",
+        "failure_prob_min": 0.0,
+        "failure_prob_max": 0.0,
+    },
+}

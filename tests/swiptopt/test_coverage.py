@@ -1,0 +1,85 @@
+import math
+
+import numpy as np
+import pytest
+
+from swiptopt import coverage as cov
+from swiptopt.scenario import Scenario
+
+
+def test_cone_mask_geometry():
+    auv = np.array([[50.0, 50.0, 0.0]])
+    t30 = math.tan(math.radians(30))
+    nodes = np.array([
+        [50.0, 50.0, 20.0],  # straight below: covered
+        [50.0 + 20 * t30 * 0.99, 50.0, 20.0],  # just inside the cone
+        [50.0 + 20 * t30 * 1.01, 50.0, 20.0],  # just outside
+        [50.0, 50.0, 0.0],  # level with the AUV: not below
+        [50.0, 50.0, 120.0],  # below but beyond the 100 m range
+    ])
+    np.testing.assert_array_equal(cov.cone_mask(auv, nodes, 30.0, 100.0)[0], [1, 1, 0, 0, 0])
+
+
+def test_cone_volume_closed_form_and_monte_carlo():
+    # depth-limited: a plain cone pi tan^2(theta) h^3 / 3
+    assert cov.cone_volume_m3(50.0, 30.0, 100.0) == pytest.approx(math.pi * 50.0**3 / 9.0)
+    # range-limited: cone up to R cos(theta) plus a spherical cap, against Monte Carlo
+    rng = np.random.default_rng(5)
+    pts = rng.uniform([-60, -60, 0], [60, 60, 80], (400_000, 3))
+    inside = cov.cone_mask([0.0, 0.0, 0.0], pts, 40.0, 70.0)[0]
+    mc = inside.mean() * 120 * 120 * 80
+    se = math.sqrt(inside.mean() * (1 - inside.mean()) / len(pts)) * 120 * 120 * 80
+    assert cov.cone_volume_m3(80.0, 40.0, 70.0) == pytest.approx(mc, abs=4 * se)
+
+
+def test_paper_coverage_number():
+    s = Scenario.preset("paper")
+    frac = cov.coverage_fraction(s, (50.0, 50.0, 0.0))
+    assert frac.method == "analytic"
+    assert frac.p == pytest.approx(math.pi * 50.0**3 / 9.0 / 500_000.0)
+    # SPEC 3.4: from the surface centre, P(cover >= 1 of 10) is about 0.6
+    assert cov.analytic_coverage_probability(s, (50.0, 50.0, 0.0), 10, 1) == pytest.approx(0.5987, abs=1e-4)
+
+
+def test_binomial_tail():
+    assert cov.binomial_at_least(3, 2, 0.5) == pytest.approx(0.5)
+    assert cov.binomial_at_least(4, 0, 0.3) == 1.0
+    assert cov.binomial_at_least(4, 5, 0.3) == 0.0
+    assert cov.binomial_at_least(10, 1, 0.1) == pytest.approx(1 - 0.9**10)
+
+
+@pytest.mark.parametrize(
+    "position, n, k",
+    [
+        ((50.0, 50.0, 0.0), 10, 1),
+        ((50.0, 50.0, 0.0), 25, 3),
+        ((50.0, 50.0, 10.0), 50, 4),
+        ((10.0, 15.0, 0.0), 20, 1),  # clipped by the side walls: Monte Carlo integration
+        ((5.0, 95.0, 5.0), 40, 2),
+    ],
+)
+def test_analytic_and_simulated_coverage_agree(position, n, k):
+    s = Scenario.preset("paper")
+    trials = 4000
+    analytic = cov.analytic_coverage_probability(s, position, n, k, rng=1)
+    simulated = cov.simulated_coverage_probability(s, position, n, k, trials=trials, rng=2)
+    se = math.sqrt(max(analytic * (1 - analytic), 1e-4) / trials)
+    assert simulated == pytest.approx(analytic, abs=4.5 * se + 0.005)
+
+
+def test_coverage_with_obstacles_uses_free_water():
+    s = Scenario.preset("harbour")
+    frac = cov.coverage_fraction(s, (100.0, 100.0, 0.0), rng=0, n_samples=50_000)
+    assert frac.method == "monte-carlo" and 0 < frac.p < 1
+    sim = cov.simulated_coverage_probability(s, (100.0, 100.0, 0.0), 20, 1, trials=3000, rng=3)
+    ana = cov.binomial_at_least(20, 1, frac.p)
+    assert sim == pytest.approx(ana, abs=4.5 * math.sqrt(ana * (1 - ana) / 3000) + 0.01)
+
+
+def test_snr_threshold_shrinks_coverage():
+    s = Scenario.preset("paper", n_nodes=200, layout_seed=1)
+    positions = s.cell_centers_m[s.cell_of_index(np.arange(s.n_cells))[:, 2] == 0]
+    base = cov.covered_nodes(s, positions)
+    strict = cov.covered_nodes(s.replace(snr_threshold_db=96.0), positions)
+    assert strict.sum() < base.sum()
+    assert not np.any(strict & ~base)  # a stricter threshold never adds a node
