@@ -170,7 +170,12 @@ def db_to_linear(value_db: ArrayLike) -> np.ndarray:
 
 def capacity_bps(bandwidth_hz: ArrayLike, snr_db: ArrayLike) -> np.ndarray:
     """Shannon rate R = B log2(1 + SNR_lin), bit/s (paper eq. 11)."""
-    return np.asarray(bandwidth_hz, dtype=float) * np.log2(1.0 + db_to_linear(snr_db))
+    return shannon_rate_bps(np.asarray(bandwidth_hz, dtype=float), db_to_linear(snr_db))
+
+
+def shannon_rate_bps(bandwidth_hz, snr_linear):  # type: ignore[no-untyped-def]
+    """B log2(1 + SNR) on a linear SNR; also compiles under numba (the kernel calls it)."""
+    return bandwidth_hz * np.log2(1.0 + snr_linear)
 
 
 def an_product_db(

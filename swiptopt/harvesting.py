@@ -70,11 +70,24 @@ def logistic_harvest_w(
 
     P_h = (M / (1 + exp(-a (P_in - b))) - M Omega) / (1 - Omega), Omega = 1 / (1 + exp(a b)).
     """
-    p_in = np.asarray(input_power_w, dtype=float)
-    # 1 / (1 + exp(-x)) written as exp(-log(1 + exp(-x))) so that steep curves do not overflow
-    omega = np.exp(-np.logaddexp(0.0, a_per_w * b_w))
-    sigmoid = np.exp(-np.logaddexp(0.0, -a_per_w * (p_in - b_w)))
-    return max_w * (sigmoid - omega) / (1.0 - omega)
+    return harvest_from_input_w(np.asarray(input_power_w, dtype=float), True, 1.0, max_w, a_per_w, b_w)
+
+
+def harvest_from_input_w(p_in, logistic, efficiency, max_w, a_per_w, b_w):  # type: ignore[no-untyped-def]
+    """The harvester curve on the power sent to it, without argument checks.
+
+    Written with numpy functions that also compile under numba, so the simulator kernel
+    calls this very function on scalars. Linear: eta P_in. Logistic: Boshkovska's curve.
+    Both are clipped to [0, P_in].
+    """
+    if logistic:
+        # 1 / (1 + exp(-x)) as exp(-log(1 + exp(-x))): steep curves do not overflow
+        omega = np.exp(-np.logaddexp(0.0, a_per_w * b_w))
+        sigmoid = np.exp(-np.logaddexp(0.0, -a_per_w * (p_in - b_w)))
+        out = max_w * (sigmoid - omega) / (1.0 - omega)
+    else:
+        out = efficiency * p_in
+    return np.minimum(np.maximum(out, 0.0), p_in)
 
 
 def harvested_power_w(
@@ -95,13 +108,9 @@ def harvested_power_w(
     input power: a fitted curve with arbitrary parameters must not create energy.
     """
     p_in = (1.0 - _split(split_ratio)) * np.asarray(available_power_w, dtype=float)
-    if model == "linear":
-        eta = np.asarray(efficiency, dtype=float)
-        if np.any((eta < 0) | (eta > 1)):
-            raise ValueError(f"efficiency must lie in [0, 1], got {efficiency!r}")
-        out = eta * p_in
-    elif model == "logistic":
-        out = logistic_harvest_w(p_in, logistic_max_w, logistic_a_per_w, logistic_b_w)
-    else:
+    if model not in ("linear", "logistic"):
         raise ValueError(f"model must be 'linear' or 'logistic', got {model!r}")
-    return np.clip(out, 0.0, p_in)
+    eta = np.asarray(efficiency, dtype=float)
+    if np.any((eta < 0) | (eta > 1)):
+        raise ValueError(f"efficiency must lie in [0, 1], got {efficiency!r}")
+    return harvest_from_input_w(p_in, model == "logistic", eta, logistic_max_w, logistic_a_per_w, logistic_b_w)

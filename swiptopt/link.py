@@ -94,7 +94,7 @@ def link_budget(
     snr = acoustics.snr_db(sl, tl, nl, scenario.directivity_rx_db)
     ok = snr >= scenario.snr_threshold_db
     info_snr = harvesting.information_snr_linear(acoustics.db_to_linear(snr), alpha)
-    rate = np.where(ok, scenario.bandwidth_hz * np.log2(1.0 + info_snr), 0.0)
+    rate = np.where(ok, acoustics.shannon_rate_bps(scenario.bandwidth_hz, info_snr), 0.0)
     p_av = harvesting.available_power_w(rl, scenario.sensitivity_db, scenario.load_ohm, scenario.n_elements)
     p_h = np.where(ok, harvested_power_w(scenario, p_av, alpha), 0.0)
     return LinkBudget(d, sl, nl, tl, rl, snr, ok, rate, p_av, p_h)
