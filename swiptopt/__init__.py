@@ -1,14 +1,34 @@
 """swiptopt: RL agents versus classical planners on one model of an AUV serving an
 underwater sensor network with acoustic SWIPT.
 
-The model modules (``acoustics``, ``harvesting``, ``auv``, ``scenario``, ``link``,
-``coverage``) need only numpy; solvers, plotting and clusters load where they are used, so
-``import swiptopt`` stays fast and quiet.
+The model modules need only numpy; importing the package also registers the Gymnasium
+environment ``swiptopt/AuvSwipt-v0``. Solvers, plotting, numba and clusters load where they
+are used, so ``import swiptopt`` stays fast and quiet.
 """
 
+from gymnasium.envs.registration import register, registry
+
 from swiptopt.errors import ConfigError
+from swiptopt.evaluation import EvaluationResult, Policy, Summary, evaluate
 from swiptopt.scenario import PRESETS, Box, Scenario, ScenarioError, Sphere
 
 __version__ = "0.1.0"
 
-__all__ = ["PRESETS", "Box", "ConfigError", "Scenario", "ScenarioError", "Sphere", "__version__"]
+ENV_ID = "swiptopt/AuvSwipt-v0"
+if ENV_ID not in registry:
+    register(id=ENV_ID, entry_point="swiptopt.env:AuvSwiptEnv")
+
+__all__ = [
+    "ENV_ID",
+    "PRESETS",
+    "Box",
+    "ConfigError",
+    "EvaluationResult",
+    "Policy",
+    "Scenario",
+    "ScenarioError",
+    "Sphere",
+    "Summary",
+    "evaluate",
+    "__version__",
+]

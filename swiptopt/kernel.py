@@ -1,0 +1,490 @@
+"""The simulator kernel: the single source of truth for how the world moves (SPEC 4).
+
+:func:`build_tables` precomputes, once per scenario, everything that does not change within
+an episode: for each cell and action the next cell and the AUV's propulsion energy (with
+the current), and for each cell the covered nodes with their mean SNR and available power.
+:func:`step` then advances an :class:`EpisodeState` by one action, given the step's random
+draws. ``step`` is plain Python over numpy arrays and scalars, written so that numba
+compiles it unchanged (:func:`compiled_step`): the Gymnasium environment, the fast RL
+trainer and the planners' plan executor all call this one function, so an agent and a
+planner are scored by the same code.
+
+Randomness never happens in here. The caller passes, per step, ``uniforms`` (n_nodes,) for
+the link failures and ``normals`` (rows, n_nodes) for the fading, drawn in blocks with
+:func:`draw_noise_block` from the environment's generator; the same draws and actions give
+the same episode bit for bit, whichever path runs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from swiptopt import acoustics, auv, harvesting
+from swiptopt.coverage import covered_nodes, slant_distances_m
+from swiptopt.link import auv_power, link_budget, reward_references
+from swiptopt.scenario import Scenario
+
+#: Actions: unit moves +x, -x, +y, -y, +z (deeper), -z, and hover.
+N_ACTIONS = 7
+HOVER = 6
+ACTION_NAMES = ("+x", "-x", "+y", "-y", "+z (deeper)", "-z (shallower)", "hover")
+ACTION_DELTAS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [0, 0, 0]], dtype=np.int64
+)
+
+CHANNEL_CODES = {"none": 0, "shadowing": 1, "rician": 2}
+
+# Indices into the scalar parameter vector ``Tables.params``.
+P_DT, P_BW, P_ALPHA, P_LOGISTIC, P_ETA, P_LMAX, P_LA, P_LB = range(8)
+P_SNR_TH, P_CHANNEL, P_SIGMA_DB, P_RICIAN_K, P_GAMMA, P_LAMBDA = range(8, 14)
+P_DATA_REF, P_ENERGY_REF, P_MOVE_REF, P_PROJECTOR_J, P_HOTEL_J = range(14, 19)
+P_DRAIN_J, P_GATE_J, P_BATTERY_J, P_STEPS, P_DATA_TARGET, P_ENERGY_TARGET = range(19, 25)
+N_PARAMS = 25
+
+# Indices into ``EpisodeState.acc``, the episode's running totals.
+A_PROPULSION_J, A_HOTEL_J, A_PROJECTOR_J, A_BITS, A_JOULES, A_RETURN = range(6)
+A_STEPS_DATA_TARGET, A_STEPS_ENERGY_TARGET, A_PROJECTOR_STEPS = range(6, 9)
+N_ACC = 9
+
+# Indices into the reward-parts output of ``step``.
+R_THROUGHPUT, R_HARVEST, R_MOVEMENT = range(3)
+REWARD_PART_NAMES = ("throughput", "harvest", "movement")
+
+# Return codes of ``step``.
+RUNNING, TERMINATED, TRUNCATED = 0, 1, 2
+
+
+@dataclass(frozen=True, eq=False)
+class Tables:
+    """Per-scenario arrays the kernel reads; built once by :func:`build_tables`."""
+
+    next_cell: np.ndarray
+    """(n_cells, 7) int64: cell after each action; the same cell when the move is blocked."""
+    moved: np.ndarray
+    """(n_cells, 7) bool: whether the action changes the cell."""
+    propulsion_j: np.ndarray
+    """(n_cells, 7): propulsion (moves) or station-keeping (hover) energy of each action, J."""
+    cov_ptr: np.ndarray
+    """(n_cells + 1,) int64: covered nodes of cell c are ``cov_node[cov_ptr[c]:cov_ptr[c+1]]``."""
+    cov_node: np.ndarray
+    """(nnz,) int64 node indices."""
+    cov_snr: np.ndarray
+    """(nnz,) mean link SNR (linear, before splitting) of each covered pair."""
+    cov_pav: np.ndarray
+    """(nnz,) mean available power at the node of each covered pair, W."""
+    data0: np.ndarray
+    """(n_nodes,) bits each node holds at the start."""
+    energy0: np.ndarray
+    """(n_nodes,) stored energy at the start, J."""
+    capacity: np.ndarray
+    """(n_nodes,) storage capacity, J."""
+    fail_prob: np.ndarray
+    """(n_nodes,) per-step link failure probability."""
+    params: np.ndarray
+    """(N_PARAMS,) float64 scalars, indexed by the ``P_*`` constants."""
+    start_cell: int
+    n_cells: int
+    n_nodes: int
+    draws_uniforms: bool
+    """Whether a step needs link-failure draws (some failure probability > 0)."""
+    normal_rows: int
+    """Fading draws per node and step: 0 (no fading), 1 (shadowing) or 2 (Rician)."""
+
+    def covered(self, cell: int) -> np.ndarray:
+        """Indices of the nodes covered from ``cell``."""
+        return self.cov_node[self.cov_ptr[cell] : self.cov_ptr[cell + 1]]
+
+
+def build_tables(scenario: Scenario) -> Tables:
+    """Precompute the scenario's kernel tables (geometry, energies, coverage, constants)."""
+    shape = scenario.grid_shape
+    n_cells = scenario.n_cells
+    cells = scenario.cell_of_index(np.arange(n_cells))  # (n_cells, 3)
+    targets = cells[:, None, :] + ACTION_DELTAS[None, :, :]  # (n_cells, 7, 3)
+    inside = np.all((targets >= 0) & (targets < np.asarray(shape)), axis=-1)
+    target_index = np.where(inside, np.ravel_multi_index(tuple(np.clip(targets, 0, np.asarray(shape) - 1).transpose(2, 0, 1)), shape), 0)
+    free = inside & ~scenario.blocked_cells[target_index]
+    next_cell = np.where(free, target_index, np.arange(n_cells)[:, None]).astype(np.int64)
+    moved = next_cell != np.arange(n_cells)[:, None]
+
+    # Propulsion: the water-relative speed needed to hold the ground velocity in the current
+    # at the cell's depth (a blocked move still costs the attempt, SPEC 4). Hover holds
+    # station against the current, plus any fixed station-keeping power.
+    dt = scenario.step_duration_s
+    current = scenario.current_at_mps(scenario.cell_centers_m[:, 2])  # (n_cells, 3)
+    ground_velocity = ACTION_DELTAS[None, :, :] * scenario.speed_mps  # (1, 7, 3)
+    water_speed = auv.water_relative_speed_mps(ground_velocity, current[:, None, :])
+    prop_w = auv.propulsion_power_w(
+        water_speed,
+        scenario.drag_coefficient,
+        scenario.frontal_area_m2,
+        scenario.water_density_kg_m3,
+        scenario.propulsion_efficiency,
+    )
+    prop_w[:, HOVER] += scenario.station_keeping_power_w
+    propulsion_j = prop_w * dt
+
+    # Coverage: cone, range and mean SNR threshold from each cell centre.
+    layout = scenario.layout
+    centres = scenario.cell_centers_m
+    covered = covered_nodes(scenario, centres, layout.positions_m) & ~scenario.blocked_cells[:, None]
+    rows, nodes = np.nonzero(covered)
+    budget = link_budget(scenario, slant_distances_m(centres, layout.positions_m)[rows, nodes])
+    cov_ptr = np.zeros(n_cells + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n_cells), out=cov_ptr[1:])
+
+    refs = reward_references(scenario)
+    power = auv_power(scenario)
+    params = np.zeros(N_PARAMS)
+    params[P_DT] = dt
+    params[P_BW] = scenario.bandwidth_hz
+    params[P_ALPHA] = scenario.split_ratio
+    params[P_LOGISTIC] = float(scenario.harvester == "logistic")
+    params[P_ETA] = scenario.harvest_efficiency
+    params[P_LMAX] = scenario.logistic_max_w
+    params[P_LA] = scenario.logistic_a_per_w
+    params[P_LB] = scenario.logistic_b_w
+    params[P_SNR_TH] = float(acoustics.db_to_linear(scenario.snr_threshold_db))
+    params[P_CHANNEL] = CHANNEL_CODES[scenario.channel]
+    params[P_SIGMA_DB] = scenario.shadowing_sigma_db
+    params[P_RICIAN_K] = scenario.rician_k
+    params[P_GAMMA] = scenario.reward_weight
+    params[P_LAMBDA] = scenario.movement_weight
+    params[P_DATA_REF] = refs.data_ref_bits
+    params[P_ENERGY_REF] = refs.energy_ref_j
+    params[P_MOVE_REF] = refs.move_energy_ref_j
+    params[P_PROJECTOR_J] = power.projector_energy_j
+    params[P_HOTEL_J] = scenario.hotel_power_w * dt
+    params[P_DRAIN_J] = scenario.idle_drain_w * dt
+    params[P_GATE_J] = scenario.energy_gate_j
+    params[P_BATTERY_J] = scenario.battery_j
+    params[P_STEPS] = scenario.episode_steps
+    params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits.sum()
+    params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j).sum()
+
+    return Tables(
+        next_cell=next_cell,
+        moved=moved,
+        propulsion_j=propulsion_j,
+        cov_ptr=cov_ptr,
+        cov_node=nodes.astype(np.int64),
+        cov_snr=acoustics.db_to_linear(budget.snr_db),
+        cov_pav=np.asarray(budget.available_power_w, dtype=float),
+        data0=layout.data_bits.astype(float),
+        energy0=layout.initial_energy_j.astype(float),
+        capacity=layout.capacity_j.astype(float),
+        fail_prob=layout.failure_prob.astype(float),
+        params=params,
+        start_cell=scenario.start_cell_index,
+        n_cells=n_cells,
+        n_nodes=scenario.n_nodes,
+        draws_uniforms=bool(np.any(layout.failure_prob > 0)),
+        normal_rows={"none": 0, "shadowing": 1, "rician": 2}[scenario.channel],
+    )
+
+
+@dataclass(eq=False)
+class EpisodeState:
+    """The mutable state of one episode; :func:`new_state` makes a fresh one."""
+
+    where: np.ndarray
+    """(2,) int64: current cell and step count t."""
+    data_left: np.ndarray
+    """(n_nodes,) bits still to deliver."""
+    energy: np.ndarray
+    """(n_nodes,) stored energy, J."""
+    delivered: np.ndarray
+    """(n_nodes,) energy delivered to each node so far, J."""
+    collected: np.ndarray
+    """(n_nodes,) bits collected from each node so far."""
+    acc: np.ndarray
+    """(N_ACC,) running totals, indexed by the ``A_*`` constants."""
+    parts: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """(3,) the last step's reward parts (throughput, harvest, movement)."""
+
+    @property
+    def cell(self) -> int:
+        return int(self.where[0])
+
+    @property
+    def t(self) -> int:
+        return int(self.where[1])
+
+    def copy(self) -> EpisodeState:
+        return EpisodeState(*(np.copy(getattr(self, f)) for f in ("where", "data_left", "energy", "delivered", "collected", "acc", "parts")))
+
+
+def new_state(tables: Tables) -> EpisodeState:
+    """The state at the start of an episode (the AUV in its start cell, t = 0)."""
+    acc = np.zeros(N_ACC)
+    acc[A_STEPS_DATA_TARGET] = -1.0
+    acc[A_STEPS_ENERGY_TARGET] = -1.0
+    if tables.params[P_DATA_TARGET] <= 0:
+        acc[A_STEPS_DATA_TARGET] = 0.0
+    if tables.params[P_ENERGY_TARGET] <= 0:
+        acc[A_STEPS_ENERGY_TARGET] = 0.0
+    return EpisodeState(
+        where=np.array([tables.start_cell, 0], dtype=np.int64),
+        data_left=tables.data0.copy(),
+        energy=tables.energy0.copy(),
+        delivered=np.zeros(tables.n_nodes),
+        collected=np.zeros(tables.n_nodes),
+        acc=acc,
+    )
+
+
+#: Steps of random draws taken at once. Drawing a block amortises the generator's call
+#: overhead; the order of the stream is part of the contract (see :func:`draw_noise_block`).
+DRAW_BLOCK = 64
+
+
+def noise_buffers(tables: Tables) -> tuple[np.ndarray, np.ndarray]:
+    """Buffers for a block of draws: ``uniforms`` (DRAW_BLOCK, n_nodes) at 1 (never fails)
+    and ``normals`` (DRAW_BLOCK, max(1, normal_rows), n_nodes) at 0 (no fading).
+    Step s of the block reads ``uniforms[s]`` and ``normals[s]``."""
+    return (
+        np.ones((DRAW_BLOCK, tables.n_nodes)),
+        np.zeros((DRAW_BLOCK, max(1, tables.normal_rows), tables.n_nodes)),
+    )
+
+
+def draw_noise_block(
+    rng: np.random.Generator, tables: Tables, uniforms: np.ndarray, normals: np.ndarray
+) -> None:
+    """Fill the next DRAW_BLOCK steps' draws in place: all uniforms, then all normals.
+
+    Draws are taken for every node and step whether or not the node is covered, so the
+    stream a seed gives does not depend on the path; an episode starts a fresh block. A
+    scenario without failures or fading draws nothing for them. The compiled trainer draws
+    the same numbers in the same order from the same generator (numba's Generator matches
+    numpy's bit for bit).
+    """
+    if tables.draws_uniforms:
+        rng.random(out=uniforms)
+    if tables.normal_rows:
+        rng.standard_normal(out=normals)
+
+
+def is_served(data_left, energy, capacity, gamma, i):  # type: ignore[no-untyped-def]
+    """Node i needs nothing more: data delivered, and storage full unless Gamma = 1."""
+    if data_left[i] > 0.0:
+        return False
+    return gamma >= 1.0 or energy[i] >= capacity[i] * (1.0 - 1e-12)
+
+
+def unserved_covered(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
+    """Number of nodes covered from ``cell`` that still need data or energy."""
+    count = 0
+    for p in range(cov_ptr[cell], cov_ptr[cell + 1]):
+        if not is_served(data_left, energy, capacity, gamma, cov_node[p]):
+            count += 1
+    return count
+
+
+def all_served(data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
+    for i in range(data_left.shape[0]):
+        if not is_served(data_left, energy, capacity, gamma, i):
+            return False
+    return True
+
+
+#: The tabular observation caps the count of covered nodes still to serve at this value.
+TABULAR_COUNT_CAP = 3
+
+
+def tabular_observation(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
+    """SPEC 4 tabular state: cell * 4 + min(covered nodes still to serve, 3)."""
+    count = unserved_covered(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma)
+    return cell * (TABULAR_COUNT_CAP + 1) + min(count, TABULAR_COUNT_CAP)
+
+
+def step_tabular(  # type: ignore[no-untyped-def]
+    action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
+    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+):
+    """:func:`step` followed by the tabular observation; returns (code, observation)."""
+    code = step(
+        action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
+        capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+    )
+    obs = tabular_observation(where[0], cov_ptr, cov_node, data_left, energy, capacity, params[P_GAMMA])
+    return code, obs
+
+
+def step(  # type: ignore[no-untyped-def]
+    action,
+    uniforms,
+    normals,
+    next_cell,
+    propulsion_j,
+    cov_ptr,
+    cov_node,
+    cov_snr,
+    cov_pav,
+    capacity,
+    fail_prob,
+    params,
+    where,
+    data_left,
+    energy,
+    delivered,
+    collected,
+    acc,
+    parts,
+):
+    """Advance the episode by one action (SPEC 4); returns RUNNING, TERMINATED or TRUNCATED.
+
+    Move (blocked moves stay put and still cost the attempt) -> nodes covered from the new
+    cell -> per covered node, with this step's fading gain g and failure draw: data
+    min(D_left, dt B log2(1 + alpha g SNR)) unless the link fails, the instantaneous SNR is
+    under the threshold, or the node's energy is under the gate; energy
+    min(E_cap - E, dt P_h((1 - alpha) g P_av)) -> idle drain -> reward parts -> t += 1.
+    The reward's movement part counts propulsion and hotel energy; the projector's energy
+    (on in any step with a covered node) is counted in the totals, not the reward.
+    """
+    dt = params[P_DT]
+    gamma = params[P_GAMMA]
+    cell = where[0]
+    new_cell = next_cell[cell, action]
+    move_j = propulsion_j[cell, action] + params[P_HOTEL_J]
+    acc[A_PROPULSION_J] += propulsion_j[cell, action]
+    acc[A_HOTEL_J] += params[P_HOTEL_J]
+    where[0] = new_cell
+
+    channel = params[P_CHANNEL]
+    alpha = params[P_ALPHA]
+    bits_total = 0.0
+    joules_total = 0.0
+    start = cov_ptr[new_cell]
+    stop = cov_ptr[new_cell + 1]
+    if stop > start:
+        acc[A_PROJECTOR_J] += params[P_PROJECTOR_J]
+        acc[A_PROJECTOR_STEPS] += 1.0
+    for p in range(start, stop):
+        i = cov_node[p]
+        if channel == 1.0:
+            gain = 10.0 ** (params[P_SIGMA_DB] * normals[0, i] / 10.0)
+        elif channel == 2.0:
+            k = params[P_RICIAN_K]
+            los = np.sqrt(k / (k + 1.0))
+            scatter = np.sqrt(0.5 / (k + 1.0))
+            re = los + scatter * normals[0, i]
+            im = scatter * normals[1, i]
+            gain = re * re + im * im
+        else:
+            gain = 1.0
+        snr = gain * cov_snr[p]
+        if (
+            data_left[i] > 0.0
+            and uniforms[i] >= fail_prob[i]
+            and snr >= params[P_SNR_TH]
+            and energy[i] >= params[P_GATE_J]
+        ):
+            bits = min(data_left[i], dt * _shannon_rate_bps(params[P_BW], alpha * snr))
+            data_left[i] -= bits
+            collected[i] += bits
+            bits_total += bits
+        room = capacity[i] - energy[i]
+        if room > 0.0:
+            p_h = _harvest_from_input_w(
+                (1.0 - alpha) * gain * cov_pav[p],
+                params[P_LOGISTIC] == 1.0,
+                params[P_ETA],
+                params[P_LMAX],
+                params[P_LA],
+                params[P_LB],
+            )
+            joules = min(room, dt * p_h)
+            energy[i] += joules
+            delivered[i] += joules
+            joules_total += joules
+    if params[P_DRAIN_J] > 0.0:
+        for i in range(energy.shape[0]):
+            energy[i] = max(0.0, energy[i] - params[P_DRAIN_J])
+
+    parts[R_THROUGHPUT] = gamma * bits_total / params[P_DATA_REF]
+    parts[R_HARVEST] = (1.0 - gamma) * joules_total / params[P_ENERGY_REF]
+    parts[R_MOVEMENT] = -params[P_LAMBDA] * move_j / params[P_MOVE_REF]
+    acc[A_BITS] += bits_total
+    acc[A_JOULES] += joules_total
+    acc[A_RETURN] += parts[R_THROUGHPUT] + parts[R_HARVEST] + parts[R_MOVEMENT]
+    where[1] += 1
+    t = where[1]
+    if acc[A_STEPS_DATA_TARGET] < 0.0 and acc[A_BITS] >= params[P_DATA_TARGET]:
+        acc[A_STEPS_DATA_TARGET] = t
+    if acc[A_STEPS_ENERGY_TARGET] < 0.0 and acc[A_JOULES] >= params[P_ENERGY_TARGET] * (1.0 - 1e-12):
+        acc[A_STEPS_ENERGY_TARGET] = t
+
+    if acc[A_PROPULSION_J] + acc[A_HOTEL_J] + acc[A_PROJECTOR_J] >= params[P_BATTERY_J]:
+        return TERMINATED
+    if all_served(data_left, energy, capacity, gamma):
+        return TERMINATED
+    if t >= params[P_STEPS]:
+        return TRUNCATED
+    return RUNNING
+
+
+def step_args(tables: Tables, state: EpisodeState) -> tuple:
+    """The arrays :func:`step` takes after (action, uniforms, normals), in order."""
+    return (
+        tables.next_cell,
+        tables.propulsion_j,
+        tables.cov_ptr,
+        tables.cov_node,
+        tables.cov_snr,
+        tables.cov_pav,
+        tables.capacity,
+        tables.fail_prob,
+        tables.params,
+        state.where,
+        state.data_left,
+        state.energy,
+        state.delivered,
+        state.collected,
+        state.acc,
+        state.parts,
+    )
+
+
+_COMPILED: dict[str, Callable] = {}
+_KERNEL_FUNCTIONS = ("is_served", "unserved_covered", "all_served", "tabular_observation", "step", "step_tabular")
+
+# The physics the step uses, by plain name: the compiled kernel rebinds these two names to
+# compiled versions of the very same functions (see ``compiled``).
+_shannon_rate_bps = acoustics.shannon_rate_bps
+_harvest_from_input_w = harvesting.harvest_from_input_w
+
+
+def numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def compiled(name: str) -> Callable:
+    """The numba-compiled version of a kernel function, e.g. ``compiled("step")``.
+
+    Compiled from the same source as the Python function, against compiled versions of the
+    shared physics helpers; compiled once per process and cached on disk by numba.
+    """
+    if not _COMPILED:
+        import types
+
+        import numba
+
+        jit = numba.njit(cache=True, nogil=True)
+        namespace = dict(globals())
+        namespace["_shannon_rate_bps"] = jit(acoustics.shannon_rate_bps)
+        namespace["_harvest_from_input_w"] = jit(harvesting.harvest_from_input_w)
+        for fname in _KERNEL_FUNCTIONS:
+            original = globals()[fname]
+            clone = types.FunctionType(original.__code__, namespace, fname, original.__defaults__)
+            clone.__qualname__ = original.__qualname__
+            clone.__module__ = original.__module__
+            namespace[fname] = _COMPILED[fname] = jit(clone)
+    return _COMPILED[name]
