@@ -11,6 +11,7 @@ decoder sees alpha times the SNR.
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -70,24 +71,39 @@ def logistic_harvest_w(
 
     P_h = (M / (1 + exp(-a (P_in - b))) - M Omega) / (1 - Omega), Omega = 1 / (1 + exp(a b)).
     """
-    return harvest_from_input_w(np.asarray(input_power_w, dtype=float), True, 1.0, max_w, a_per_w, b_w)
+    return _harvest_array(np.asarray(input_power_w, dtype=float), True, 1.0, max_w, a_per_w, b_w)
+
+
+def _sigmoid(x: float) -> float:
+    # 1 / (1 + exp(-x)) without overflow for large |x|
+    if x >= 0.0:
+        return 1.0 / (1.0 + math.exp(-x))
+    e = math.exp(x)
+    return e / (1.0 + e)
 
 
 def harvest_from_input_w(p_in, logistic, efficiency, max_w, a_per_w, b_w):  # type: ignore[no-untyped-def]
-    """The harvester curve on the power sent to it, without argument checks.
+    """The harvester curve on the scalar power sent to it, W, without argument checks.
 
-    Written with numpy functions that also compile under numba, so the simulator kernel
-    calls this very function on scalars. Linear: eta P_in. Logistic: Boshkovska's curve.
-    Both are clipped to [0, P_in].
+    Linear: eta P_in. Logistic: Boshkovska's curve. Both clipped to [0, P_in]. Scalar and
+    written with ``math`` so that the simulator kernel calls this very function, in Python
+    or compiled by numba, with the same C library underneath (bit-identical results).
     """
     if logistic:
-        # 1 / (1 + exp(-x)) as exp(-log(1 + exp(-x))): steep curves do not overflow
-        omega = np.exp(-np.logaddexp(0.0, a_per_w * b_w))
-        sigmoid = np.exp(-np.logaddexp(0.0, -a_per_w * (p_in - b_w)))
-        out = max_w * (sigmoid - omega) / (1.0 - omega)
+        omega = _sigmoid(-a_per_w * b_w)
+        out = max_w * (_sigmoid(a_per_w * (p_in - b_w)) - omega) / (1.0 - omega)
     else:
         out = efficiency * p_in
-    return np.minimum(np.maximum(out, 0.0), p_in)
+    return min(max(out, 0.0), p_in)
+
+
+_harvest_ufunc = np.frompyfunc(harvest_from_input_w, 6, 1)
+
+
+def _harvest_array(p_in, logistic, efficiency, max_w, a_per_w, b_w):  # type: ignore[no-untyped-def]
+    """:func:`harvest_from_input_w` over broadcast arrays (float64 out)."""
+    out = _harvest_ufunc(p_in, logistic, efficiency, max_w, a_per_w, b_w)
+    return np.asarray(out, dtype=float)[()]
 
 
 def harvested_power_w(
@@ -113,4 +129,4 @@ def harvested_power_w(
     eta = np.asarray(efficiency, dtype=float)
     if np.any((eta < 0) | (eta > 1)):
         raise ValueError(f"efficiency must lie in [0, 1], got {efficiency!r}")
-    return harvest_from_input_w(p_in, model == "logistic", eta, logistic_max_w, logistic_a_per_w, logistic_b_w)
+    return _harvest_array(p_in, model == "logistic", eta, logistic_max_w, logistic_a_per_w, logistic_b_w)

@@ -480,7 +480,12 @@ def compiled(name: str) -> Callable:
         jit = numba.njit(cache=True, nogil=True)
         namespace = dict(globals())
         namespace["_shannon_rate_bps"] = jit(acoustics.shannon_rate_bps)
-        namespace["_harvest_from_input_w"] = jit(harvesting.harvest_from_input_w)
+        harvesting_namespace = dict(vars(harvesting))
+        harvesting_namespace["_sigmoid"] = jit(harvesting._sigmoid)
+        harvest = harvesting.harvest_from_input_w
+        namespace["_harvest_from_input_w"] = jit(
+            types.FunctionType(harvest.__code__, harvesting_namespace, harvest.__name__)
+        )
         for fname in _KERNEL_FUNCTIONS:
             original = globals()[fname]
             clone = types.FunctionType(original.__code__, namespace, fname, original.__defaults__)
