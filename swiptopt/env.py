@@ -139,7 +139,7 @@ class AuvSwiptEnv(gym.Env):
         self.state = K.new_state(self.tables)
         self._args = K.step_args(self.tables, self.state)
         self._done = False
-        self._block_row = K.DRAW_BLOCK  # an episode starts a fresh block of draws
+        self._refill = True  # an episode starts with fresh draws
         self.path = [self.state.where[0]]
         if self.observation == "tabular":
             obs = int(
@@ -163,12 +163,9 @@ class AuvSwiptEnv(gym.Env):
         a = int(action)
         if not 0 <= a < K.N_ACTIONS:
             raise ValueError(f"action must be an integer in [0, {K.N_ACTIONS - 1}], got {action!r}")
-        row = self._block_row
-        if row == K.DRAW_BLOCK:
-            K.draw_noise_block(self.np_random, self.tables, self._uniforms, self._normals)
-            row = 0
-        self._block_row = row + 1
-        code, obs = self._step_tabular(a, self._uniforms[row], self._normals[row], *self._args)
+        if self._refill:
+            K.refill_noise(self.np_random, self.tables, self._uniforms, self._normals, self.state.where)
+        code, obs, self._refill = self._step_tabular(a, self._uniforms, self._normals, *self._args)
         throughput, harvest, movement = self.state.parts.tolist()
         self.path.append(self.state.where[0])
         info: dict[str, Any] = {"reward_parts": {"throughput": throughput, "harvest": harvest, "movement": movement}}

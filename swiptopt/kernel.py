@@ -9,10 +9,10 @@ compiles it unchanged (:func:`compiled_step`): the Gymnasium environment, the fa
 trainer and the planners' plan executor all call this one function, so an agent and a
 planner are scored by the same code.
 
-Randomness never happens in here. The caller passes, per step, ``uniforms`` (n_nodes,) for
-the link failures and ``normals`` (rows, n_nodes) for the fading, drawn in blocks with
-:func:`draw_noise_block` from the environment's generator; the same draws and actions give
-the same episode bit for bit, whichever path runs it.
+Randomness never happens in here. The caller passes buffers of uniforms (link failures)
+and normals (fading) filled by :func:`refill_noise` from the environment's generator; a
+step reads the next few values for each covered node. The same seed and actions give the
+same episode bit for bit, whichever path runs it.
 """
 
 from __future__ import annotations
@@ -42,7 +42,8 @@ P_DT, P_BW, P_ALPHA, P_LOGISTIC, P_ETA, P_LMAX, P_LA, P_LB = range(8)
 P_SNR_TH, P_CHANNEL, P_SIGMA_DB, P_RICIAN_K, P_GAMMA, P_LAMBDA = range(8, 14)
 P_DATA_REF, P_ENERGY_REF, P_MOVE_REF, P_PROJECTOR_J, P_HOTEL_J = range(14, 19)
 P_DRAIN_J, P_GATE_J, P_BATTERY_J, P_STEPS, P_DATA_TARGET, P_ENERGY_TARGET = range(19, 25)
-N_PARAMS = 25
+P_DRAW_UNIFORMS, P_NORMAL_ROWS = range(25, 27)
+N_PARAMS = 27
 
 # Indices into ``EpisodeState.acc``, the episode's running totals.
 A_PROPULSION_J, A_HOTEL_J, A_PROJECTOR_J, A_BITS, A_JOULES, A_RETURN = range(6)
@@ -52,6 +53,9 @@ N_ACC = 9
 # Indices into the reward-parts output of ``step``.
 R_THROUGHPUT, R_HARVEST, R_MOVEMENT = range(3)
 REWARD_PART_NAMES = ("throughput", "harvest", "movement")
+
+# Indices into ``EpisodeState.where``.
+W_CELL, W_T, W_UPTR, W_ZPTR = range(4)
 
 # Return codes of ``step``.
 RUNNING, TERMINATED, TRUNCATED = 0, 1, 2
@@ -164,6 +168,8 @@ def build_tables(scenario: Scenario) -> Tables:
     params[P_STEPS] = scenario.episode_steps
     params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits.sum()
     params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j).sum()
+    params[P_DRAW_UNIFORMS] = float(np.any(layout.failure_prob > 0))
+    params[P_NORMAL_ROWS] = {"none": 0, "shadowing": 1, "rician": 2}[scenario.channel]
 
     return Tables(
         next_cell=next_cell,
@@ -181,8 +187,8 @@ def build_tables(scenario: Scenario) -> Tables:
         start_cell=scenario.start_cell_index,
         n_cells=n_cells,
         n_nodes=scenario.n_nodes,
-        draws_uniforms=bool(np.any(layout.failure_prob > 0)),
-        normal_rows={"none": 0, "shadowing": 1, "rician": 2}[scenario.channel],
+        draws_uniforms=bool(params[P_DRAW_UNIFORMS]),
+        normal_rows=int(params[P_NORMAL_ROWS]),
     )
 
 
@@ -191,7 +197,8 @@ class EpisodeState:
     """The mutable state of one episode; :func:`new_state` makes a fresh one."""
 
     where: np.ndarray
-    """(2,) int64: current cell and step count t."""
+    """(4,) int64: current cell, step count t, and the read positions in the uniform and
+    normal draw buffers (``W_*`` constants)."""
     data_left: np.ndarray
     """(n_nodes,) bits still to deliver."""
     energy: np.ndarray
@@ -227,7 +234,8 @@ def new_state(tables: Tables) -> EpisodeState:
     if tables.params[P_ENERGY_TARGET] <= 0:
         acc[A_STEPS_ENERGY_TARGET] = 0.0
     return EpisodeState(
-        where=np.array([tables.start_cell, 0], dtype=np.int64),
+        # draw positions past any buffer's end: the first step refills
+        where=np.array([tables.start_cell, 0, 2**62, 2**62], dtype=np.int64),
         data_left=tables.data0.copy(),
         energy=tables.energy0.copy(),
         delivered=np.zeros(tables.n_nodes),
@@ -236,36 +244,42 @@ def new_state(tables: Tables) -> EpisodeState:
     )
 
 
-#: Steps of random draws taken at once. Drawing a block amortises the generator's call
-#: overhead; the order of the stream is part of the contract (see :func:`draw_noise_block`).
-DRAW_BLOCK = 64
+def buffer_sizes(tables: Tables) -> tuple[int, int]:
+    """Lengths of the uniform and the normal draw buffers of a scenario."""
+    n = max(4096, 8 * tables.n_nodes)
+    return n, n * max(1, tables.normal_rows)
 
 
 def noise_buffers(tables: Tables) -> tuple[np.ndarray, np.ndarray]:
-    """Buffers for a block of draws: ``uniforms`` (DRAW_BLOCK, n_nodes) at 1 (never fails)
-    and ``normals`` (DRAW_BLOCK, max(1, normal_rows), n_nodes) at 0 (no fading).
-    Step s of the block reads ``uniforms[s]`` and ``normals[s]``."""
-    return (
-        np.ones((DRAW_BLOCK, tables.n_nodes)),
-        np.zeros((DRAW_BLOCK, max(1, tables.normal_rows), tables.n_nodes)),
-    )
+    """Empty draw buffers (uniforms, normals); :func:`new_state` marks them as used up."""
+    n_u, n_z = buffer_sizes(tables)
+    return np.ones(n_u), np.zeros(n_z)
 
 
-def draw_noise_block(
-    rng: np.random.Generator, tables: Tables, uniforms: np.ndarray, normals: np.ndarray
+def refill_noise(
+    rng: np.random.Generator, tables: Tables, uniforms: np.ndarray, normals: np.ndarray, where: np.ndarray
 ) -> None:
-    """Fill the next DRAW_BLOCK steps' draws in place: all uniforms, then all normals.
+    """Refill both draw buffers from ``rng`` (all uniforms, then all normals) and rewind.
 
-    Draws are taken for every node and step whether or not the node is covered, so the
-    stream a seed gives does not depend on the path; an episode starts a fresh block. A
-    scenario without failures or fading draws nothing for them. The compiled trainer draws
-    the same numbers in the same order from the same generator (numba's Generator matches
-    numpy's bit for bit).
+    A step consumes, for each covered node in order, one uniform (link failure; only when
+    some failure probability is positive) and ``normal_rows`` normals (fading; only for a
+    stochastic channel). The caller refills whenever :func:`step` returned
+    ``NEEDS_DRAWS``-flagged state (see :func:`needs_refill`), and at the start of every
+    episode. The compiled trainer draws the same numbers in the same order from the same
+    generator (numba's Generator matches numpy's bit for bit), so the same seed and actions
+    give the same episode, bit for bit, on either path.
     """
     if tables.draws_uniforms:
         rng.random(out=uniforms)
     if tables.normal_rows:
         rng.standard_normal(out=normals)
+    where[W_UPTR] = 0
+    where[W_ZPTR] = 0
+
+
+def needs_refill(where, n_nodes, n_uniforms, n_normals, normal_rows):  # type: ignore[no-untyped-def]
+    """Whether fewer draws are left than the next step could use (every node covered)."""
+    return where[W_UPTR] + n_nodes > n_uniforms or where[W_ZPTR] + n_nodes * normal_rows > n_normals
 
 
 def is_served(data_left, energy, capacity, gamma, i):  # type: ignore[no-untyped-def]
@@ -305,13 +319,17 @@ def step_tabular(  # type: ignore[no-untyped-def]
     action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
     capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
 ):
-    """:func:`step` followed by the tabular observation; returns (code, observation)."""
+    """:func:`step`, then the tabular observation and whether the draw buffers need a
+    refill before the next step; returns (code, observation, refill)."""
     code = step(
         action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
         capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
     )
-    obs = tabular_observation(where[0], cov_ptr, cov_node, data_left, energy, capacity, params[P_GAMMA])
-    return code, obs
+    obs = tabular_observation(where[W_CELL], cov_ptr, cov_node, data_left, energy, capacity, params[P_GAMMA])
+    refill = needs_refill(
+        where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS])
+    )
+    return code, obs, refill
 
 
 def step(  # type: ignore[no-untyped-def]
@@ -338,7 +356,8 @@ def step(  # type: ignore[no-untyped-def]
     """Advance the episode by one action (SPEC 4); returns RUNNING, TERMINATED or TRUNCATED.
 
     Move (blocked moves stay put and still cost the attempt) -> nodes covered from the new
-    cell -> per covered node, with this step's fading gain g and failure draw: data
+    cell -> per covered node, with its next draws from the buffers (a failure uniform, the
+    fading normals) giving this step's fading gain g: data
     min(D_left, dt B log2(1 + alpha g SNR)) unless the link fails, the instantaneous SNR is
     under the threshold, or the node's energy is under the gate; energy
     min(E_cap - E, dt P_h((1 - alpha) g P_av)) -> idle drain -> reward parts -> t += 1.
@@ -347,15 +366,17 @@ def step(  # type: ignore[no-untyped-def]
     """
     dt = params[P_DT]
     gamma = params[P_GAMMA]
-    cell = where[0]
+    cell = where[W_CELL]
     new_cell = next_cell[cell, action]
     move_j = propulsion_j[cell, action] + params[P_HOTEL_J]
     acc[A_PROPULSION_J] += propulsion_j[cell, action]
     acc[A_HOTEL_J] += params[P_HOTEL_J]
-    where[0] = new_cell
+    where[W_CELL] = new_cell
 
     channel = params[P_CHANNEL]
     alpha = params[P_ALPHA]
+    draw_u = params[P_DRAW_UNIFORMS] == 1.0
+    rows = int(params[P_NORMAL_ROWS])
     bits_total = 0.0
     joules_total = 0.0
     start = cov_ptr[new_cell]
@@ -365,21 +386,27 @@ def step(  # type: ignore[no-untyped-def]
         acc[A_PROJECTOR_STEPS] += 1.0
     for p in range(start, stop):
         i = cov_node[p]
+        u = 1.0  # never fails
+        if draw_u:
+            u = uniforms[where[W_UPTR]]
+            where[W_UPTR] += 1
+        z = where[W_ZPTR]
+        where[W_ZPTR] += rows
         if channel == 1.0:
-            gain = 10.0 ** (params[P_SIGMA_DB] * normals[0, i] / 10.0)
+            gain = 10.0 ** (params[P_SIGMA_DB] * normals[z] / 10.0)
         elif channel == 2.0:
             k = params[P_RICIAN_K]
             los = np.sqrt(k / (k + 1.0))
             scatter = np.sqrt(0.5 / (k + 1.0))
-            re = los + scatter * normals[0, i]
-            im = scatter * normals[1, i]
+            re = los + scatter * normals[z]
+            im = scatter * normals[z + 1]
             gain = re * re + im * im
         else:
             gain = 1.0
         snr = gain * cov_snr[p]
         if (
             data_left[i] > 0.0
-            and uniforms[i] >= fail_prob[i]
+            and u >= fail_prob[i]
             and snr >= params[P_SNR_TH]
             and energy[i] >= params[P_GATE_J]
         ):
@@ -411,8 +438,8 @@ def step(  # type: ignore[no-untyped-def]
     acc[A_BITS] += bits_total
     acc[A_JOULES] += joules_total
     acc[A_RETURN] += parts[R_THROUGHPUT] + parts[R_HARVEST] + parts[R_MOVEMENT]
-    where[1] += 1
-    t = where[1]
+    where[W_T] += 1
+    t = where[W_T]
     if acc[A_STEPS_DATA_TARGET] < 0.0 and acc[A_BITS] >= params[P_DATA_TARGET]:
         acc[A_STEPS_DATA_TARGET] = t
     if acc[A_STEPS_ENERGY_TARGET] < 0.0 and acc[A_JOULES] >= params[P_ENERGY_TARGET] * (1.0 - 1e-12):
@@ -450,7 +477,7 @@ def step_args(tables: Tables, state: EpisodeState) -> tuple:
 
 
 _COMPILED: dict[str, Callable] = {}
-_KERNEL_FUNCTIONS = ("is_served", "unserved_covered", "all_served", "tabular_observation", "step", "step_tabular")
+_KERNEL_FUNCTIONS = ("is_served", "unserved_covered", "all_served", "tabular_observation", "needs_refill", "step", "step_tabular")
 
 # The physics the step uses, by plain name: the compiled kernel rebinds these two names to
 # compiled versions of the very same functions (see ``compiled``).
