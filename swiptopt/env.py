@@ -14,6 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from swiptopt import kernel as K
+from swiptopt.jit import numba_available
 from swiptopt.metrics import episode_metrics
 from swiptopt.scenario import Scenario
 
@@ -107,7 +108,7 @@ class AuvSwiptEnv(gym.Env):
         self.render_mode = render_mode
         self.tables = K.build_tables(scenario)
         if backend == "auto":
-            backend = "compiled" if K.numba_available() else "python"
+            backend = "compiled" if numba_available() else "python"
         self.backend = backend
         if backend == "compiled":
             self._step_tabular = K.compiled("step_tabular")
@@ -136,10 +137,18 @@ class AuvSwiptEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self.state = K.new_state(self.tables)
-        self._args = K.step_args(self.tables, self.state)
+        t = self.tables
+        if self.state is None or seed is not None:
+            # a seeded reset starts with fresh draws from the reseeded generator
+            self.state = K.new_state(t)
+            self._args = K.step_args(t, self.state)
+        else:
+            # an unseeded one goes on with the draws left in the buffers
+            K.reset_state(t.start_cell, t.data0, t.energy0, t.params, *K._state_arrays(self.state))
+        self._refill = K.needs_refill(
+            self.state.where, t.n_nodes, self._uniforms.shape[0], self._normals.shape[0], t.normal_rows
+        )
         self._done = False
-        self._refill = True  # an episode starts with fresh draws
         self.path = [self.state.where[0]]
         if self.observation == "tabular":
             obs = int(

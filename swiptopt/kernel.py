@@ -24,6 +24,7 @@ import numpy as np
 
 from swiptopt import acoustics, auv, harvesting
 from swiptopt.coverage import covered_nodes, slant_distances_m
+from swiptopt.jit import compile_family, numba_available  # noqa: F401 (re-exported)
 from swiptopt.link import auv_power, link_budget, reward_references
 from swiptopt.scenario import Scenario
 
@@ -226,27 +227,44 @@ class EpisodeState:
 
 def new_state(tables: Tables) -> EpisodeState:
     """The state at the start of an episode (the AUV in its start cell, t = 0)."""
-    acc = np.zeros(N_ACC)
-    acc[A_STEPS_DATA_TARGET] = -1.0
-    acc[A_STEPS_ENERGY_TARGET] = -1.0
-    if tables.params[P_DATA_TARGET] <= 0:
-        acc[A_STEPS_DATA_TARGET] = 0.0
-    if tables.params[P_ENERGY_TARGET] <= 0:
-        acc[A_STEPS_ENERGY_TARGET] = 0.0
-    return EpisodeState(
-        # draw positions past any buffer's end: the first step refills
-        where=np.array([tables.start_cell, 0, 2**62, 2**62], dtype=np.int64),
-        data_left=tables.data0.copy(),
-        energy=tables.energy0.copy(),
-        delivered=np.zeros(tables.n_nodes),
-        collected=np.zeros(tables.n_nodes),
-        acc=acc,
+    state = EpisodeState(
+        where=np.zeros(4, dtype=np.int64),
+        data_left=np.empty(tables.n_nodes),
+        energy=np.empty(tables.n_nodes),
+        delivered=np.empty(tables.n_nodes),
+        collected=np.empty(tables.n_nodes),
+        acc=np.empty(N_ACC),
     )
+    reset_state(tables.start_cell, tables.data0, tables.energy0, tables.params, *_state_arrays(state))
+    state.where[W_UPTR] = state.where[W_ZPTR] = 2**62  # no draws yet: the first step refills
+    return state
+
+
+def _state_arrays(state: EpisodeState) -> tuple:
+    return (state.where, state.data_left, state.energy, state.delivered, state.collected, state.acc, state.parts)
+
+
+def reset_state(start_cell, data0, energy0, params, where, data_left, energy, delivered, collected, acc, parts):  # type: ignore[no-untyped-def]
+    """Rewrite the state arrays in place to the start of an episode.
+
+    The draw positions are kept: an unseeded reset goes on reading the same buffers (a
+    seeded one starts from :func:`new_state`, with fresh draws).
+    """
+    where[W_CELL] = start_cell
+    where[W_T] = 0
+    data_left[:] = data0
+    energy[:] = energy0
+    delivered[:] = 0.0
+    collected[:] = 0.0
+    acc[:] = 0.0
+    parts[:] = 0.0
+    acc[A_STEPS_DATA_TARGET] = 0.0 if params[P_DATA_TARGET] <= 0 else -1.0
+    acc[A_STEPS_ENERGY_TARGET] = 0.0 if params[P_ENERGY_TARGET] <= 0 else -1.0
 
 
 def buffer_sizes(tables: Tables) -> tuple[int, int]:
     """Lengths of the uniform and the normal draw buffers of a scenario."""
-    n = max(4096, 8 * tables.n_nodes)
+    n = max(1024, 8 * tables.n_nodes)
     return n, n * max(1, tables.normal_rows)
 
 
@@ -264,8 +282,8 @@ def refill_noise(
     A step consumes, for each covered node in order, one uniform (link failure; only when
     some failure probability is positive) and ``normal_rows`` normals (fading; only for a
     stochastic channel). The caller refills whenever :func:`step` returned
-    ``NEEDS_DRAWS``-flagged state (see :func:`needs_refill`), and at the start of every
-    episode. The compiled trainer draws the same numbers in the same order from the same
+    a refill flag (see :func:`needs_refill`). Draws left at the end of an episode serve the
+    next one; a seeded reset starts afresh. The compiled trainer draws the same numbers in the same order from the same
     generator (numba's Generator matches numpy's bit for bit), so the same seed and actions
     give the same episode, bit for bit, on either path.
     """
@@ -477,20 +495,21 @@ def step_args(tables: Tables, state: EpisodeState) -> tuple:
 
 
 _COMPILED: dict[str, Callable] = {}
-_KERNEL_FUNCTIONS = ("is_served", "unserved_covered", "all_served", "tabular_observation", "needs_refill", "step", "step_tabular")
+_KERNEL_FUNCTIONS = (
+    "is_served",
+    "unserved_covered",
+    "all_served",
+    "tabular_observation",
+    "needs_refill",
+    "reset_state",
+    "step",
+    "step_tabular",
+)
 
 # The physics the step uses, by plain name: the compiled kernel rebinds these two names to
 # compiled versions of the very same functions (see ``compiled``).
 _shannon_rate_bps = acoustics.shannon_rate_bps
 _harvest_from_input_w = harvesting.harvest_from_input_w
-
-
-def numba_available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def compiled(name: str) -> Callable:
@@ -500,23 +519,13 @@ def compiled(name: str) -> Callable:
     shared physics helpers; compiled once per process and cached on disk by numba.
     """
     if not _COMPILED:
-        import types
-
-        import numba
-
-        jit = numba.njit(cache=True, nogil=True)
-        namespace = dict(globals())
-        namespace["_shannon_rate_bps"] = jit(acoustics.shannon_rate_bps)
-        harvesting_namespace = dict(vars(harvesting))
-        harvesting_namespace["_sigmoid"] = jit(harvesting._sigmoid)
-        harvest = harvesting.harvest_from_input_w
-        namespace["_harvest_from_input_w"] = jit(
-            types.FunctionType(harvest.__code__, harvesting_namespace, harvest.__name__)
+        physics = compile_family({"_sigmoid": harvesting._sigmoid})
+        physics.update(compile_family({"_harvest_from_input_w": harvesting.harvest_from_input_w}, physics))
+        physics.update(compile_family({"_shannon_rate_bps": acoustics.shannon_rate_bps}))
+        _COMPILED.update(
+            compile_family({name: globals()[name] for name in _KERNEL_FUNCTIONS}, {
+                "_shannon_rate_bps": physics["_shannon_rate_bps"],
+                "_harvest_from_input_w": physics["_harvest_from_input_w"],
+            })
         )
-        for fname in _KERNEL_FUNCTIONS:
-            original = globals()[fname]
-            clone = types.FunctionType(original.__code__, namespace, fname, original.__defaults__)
-            clone.__qualname__ = original.__qualname__
-            clone.__module__ = original.__module__
-            namespace[fname] = _COMPILED[fname] = jit(clone)
     return _COMPILED[name]
