@@ -66,8 +66,8 @@ class _TabularAgent:
         self,
         n_states: int,
         n_actions: int = N_ACTIONS,
-        config: TabularConfig | None = None,
         *,
+        config: TabularConfig | None = None,
         seed: int | None = None,
         **settings: Any,
     ):
@@ -163,8 +163,8 @@ class _TabularAgent:
                 raise ConfigError(f"{path} holds a {algorithm!r} agent, not {cls.algorithm!r}", "path")
             q = data["q_table"]
             seed = int(data["seed"])
-            agent = cls(q.shape[0], q.shape[1], TabularConfig(**json.loads(str(data["config"]))),
-                        seed=None if seed < 0 else seed)
+            config = TabularConfig(**json.loads(str(data["config"])))
+            agent = cls(q.shape[0], q.shape[1], config=config, seed=None if seed < 0 else seed)
             agent.q_table_ = q.copy()
             agent.epsilon_ = float(data["epsilon"])
             agent.rng_.bit_generator.state = json.loads(str(data["rng_state"]))
@@ -204,4 +204,4 @@ def make_agent(
         if settings or config is not None:
             raise ConfigError("the random agent takes no settings", "algorithm")
         return RandomAgent(n_states, n_actions, seed=seed)
-    return AGENTS[algorithm](n_states, n_actions, config, seed=seed, **settings)
+    return AGENTS[algorithm](n_states, n_actions, config=config, seed=seed, **settings)

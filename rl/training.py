@@ -30,9 +30,9 @@ LOG_COLUMNS = (
     "energy_delivered_j",
     "auv_energy_j",
     "energy_efficiency_bit_per_j",
+    "mobility_efficiency_bit_per_j",
     "epsilon",
 )
-_RETURN, _LENGTH, _DATA, _ENERGY, _AUV, _EFFICIENCY, _EPSILON = range(len(LOG_COLUMNS))
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +97,7 @@ def _train_python(agent: Any, env: Any, episodes: int, seed: int | None, log: np
         m = info["episode"]
         log[ep] = (
             m["return"], m["length"], m["data_bits"], m["energy_delivered_j"], m["auv_energy_j"],
-            m["energy_efficiency_bit_per_j"], epsilon,
+            m["energy_efficiency_bit_per_j"], m["mobility_efficiency_bit_per_j"], epsilon,
         )
         agent.end_episode()
 
@@ -170,7 +170,9 @@ def train_loop(  # type: ignore[no-untyped-def]
         log[ep, 3] = acc[K.A_JOULES]
         log[ep, 4] = auv
         log[ep, 5] = acc[K.A_BITS] / auv if auv > 0 else 0.0
-        log[ep, 6] = epsilon
+        mobility = acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J]
+        log[ep, 6] = acc[K.A_BITS] / mobility if mobility > 0 else 0.0
+        log[ep, 7] = epsilon
         if kind != 0:
             epsilon = max(epsilon_min, epsilon * epsilon_decay)
     return epsilon

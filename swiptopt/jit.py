@@ -8,7 +8,10 @@ the Python originals stay untouched and remain the reference implementation.
 
 from __future__ import annotations
 
+import hashlib
 import types
+from functools import lru_cache
+from pathlib import Path
 from typing import Any, Callable, Mapping
 
 
@@ -19,6 +22,23 @@ def numba_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+@lru_cache(maxsize=1)
+def source_tag() -> str:
+    """A hash of the sources of ``swiptopt`` and ``rl``, the packages compiled here.
+
+    Numba's disk cache checks only the compiled function's own file, not what it inlines
+    (the physics, the kernel) nor the compile flags; naming every compiled function with
+    this tag makes any edit to either package a cache miss instead of stale machine code.
+    """
+    digest = hashlib.sha1()
+    root = Path(__file__).resolve().parent.parent
+    for package in ("swiptopt", "rl"):
+        for path in sorted((root / package).glob("*.py")):
+            digest.update(path.name.encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
 
 
 def compile_family(
@@ -46,7 +66,7 @@ def compile_family(
         namespace.update(compiled_globals)
         namespace.update(out)
         clone = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__)
-        clone.__qualname__ = fn.__qualname__
+        clone.__qualname__ = f"{fn.__qualname__}_{source_tag()}"
         clone.__module__ = fn.__module__
         out[name] = jit(clone)
     return out

@@ -465,7 +465,8 @@ def step(  # type: ignore[no-untyped-def]
 
     if acc[A_PROPULSION_J] + acc[A_HOTEL_J] + acc[A_PROJECTOR_J] >= params[P_BATTERY_J]:
         return TERMINATED
-    if all_served(data_left, energy, capacity, gamma):
+    # the served set can only have grown in a step that delivered something
+    if (bits_total > 0.0 or joules_total > 0.0) and all_served(data_left, energy, capacity, gamma):
         return TERMINATED
     if t >= params[P_STEPS]:
         return TRUNCATED

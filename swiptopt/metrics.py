@@ -20,6 +20,7 @@ EPISODE_METRICS = (
     "auv_projector_j",
     "mission_time_s",
     "energy_efficiency_bit_per_j",
+    "mobility_efficiency_bit_per_j",
     "nodes_served",
     "jain_data",
     "jain_energy",
@@ -41,12 +42,17 @@ def jain_index(x: np.ndarray) -> float:
 def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
     """The metrics of an episode from its final state.
 
+    ``energy_efficiency_bit_per_j`` divides the data by all the AUV's energy (propulsion,
+    hotel and projector: SPEC 4); ``mobility_efficiency_bit_per_j`` by propulsion and hotel
+    energy only, the AUV energy of the paper's eqs. 14-16, for comparison with its results.
+
     ``steps_to_*_target`` are ``None`` when the target was not reached (never a number
     that looks like one); ``jain_*`` are NaN when nothing at all was delivered.
     """
     acc = state.acc
     gamma = tables.params[K.P_GAMMA]
     auv_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J] + acc[K.A_PROJECTOR_J])
+    mobility_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
     bits = float(acc[K.A_BITS])
     served = sum(
         bool(K.is_served(state.data_left, state.energy, tables.capacity, gamma, i)) for i in range(tables.n_nodes)
@@ -63,6 +69,8 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
         "auv_projector_j": float(acc[K.A_PROJECTOR_J]),
         "mission_time_s": state.t * float(tables.params[K.P_DT]),
         "energy_efficiency_bit_per_j": bits / auv_j if auv_j > 0 else 0.0,
+        # the paper's AUV energy (eqs. 14-16) is propulsion and hotel load only
+        "mobility_efficiency_bit_per_j": bits / mobility_j if mobility_j > 0 else 0.0,
         "nodes_served": served,
         "jain_data": jain_index(state.collected),
         "jain_energy": jain_index(state.delivered),
