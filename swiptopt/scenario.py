@@ -606,7 +606,8 @@ def _check_field(name: str, value: Any, spec: _Spec) -> Any:
 #: The presets as overrides of the defaults above. ``paper`` is the paper's Table I where
 #: that is consistent and the SPEC's documented choices elsewhere; ``harbour`` adds
 #: obstacles, a sloping seabed and a tidal current, where path planning matters; ``tiny``
-#: is a deterministic instance small enough for an exact optimum.
+#: is a deterministic instance (no fading, no link failures, a wide beam) small enough for
+#: an exact optimum.
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     "harbour": {
@@ -636,6 +637,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "depth_m": 20.0,
         "n_nodes": 3,
         "episode_steps": 12,
+        # a wide-beam projector, so that most of the few nodes can be reached at all
+        "cone_half_angle_deg": 60.0,
         "channel": "none",
         "failure_prob_min": 0.0,
         "failure_prob_max": 0.0,

@@ -166,7 +166,7 @@ def test_hovering_over_served_nodes_earns_exactly_the_movement_penalty():
     assert r1 > 0 and term  # one step collects the data; storage was full: all served
     # keep a second, far node unserved so the episode goes on, and hover over the first
     scenario = _one_node_below(initial_soc_min=1.0, initial_soc_max=1.0, data_bits=1e4).replace(
-        n_nodes=2, node_positions_m=((15.0, 15.0, 15.0), (29.0, 29.0, 19.0))
+        n_nodes=2, node_positions_m=((15.0, 15.0, 15.0), (29.0, 29.0, 6.0))
     )
     env = AuvSwiptEnv(scenario)
     env.reset(seed=0)
