@@ -636,7 +636,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "width_m": 30.0,
         "depth_m": 20.0,
         "n_nodes": 3,
-        "episode_steps": 12,
+        "episode_steps": 8,
         # a wide-beam projector, so that most of the few nodes can be reached at all
         "cone_half_angle_deg": 60.0,
         "channel": "none",

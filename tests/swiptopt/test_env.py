@@ -227,7 +227,7 @@ def test_renders():
     text = AuvSwiptEnv(preset="tiny", render_mode="ansi")
     text.reset(seed=0)
     text.step(6)
-    assert "t=1/12" in text.render()
+    assert "t=1/8" in text.render()
 
 
 def test_bad_arguments():

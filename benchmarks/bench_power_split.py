@@ -1,0 +1,111 @@
+"""Time of the power-split planners: the closed form, a cvxpy build + solve, a DPP re-solve.
+
+All three run in this one process, interleaved over the repeats so they see the same
+machine load; the median of each is reported, with the ratios. The program's instance is
+the ``paper`` scenario with one hover cell a level above each of the first ``--hover``
+nodes; each re-solve draws new values for the same coverage pattern (3 dB log-normal
+shadowing on SNR and power, a random share of the data already collected). Usage:
+
+    python benchmarks/bench_power_split.py [--closed-form-nodes 100000] [--nodes 50] [--hover 10] [--repeats 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from typing import Any
+
+import numpy as np
+
+from planners import power_split as ps
+from swiptopt.scenario import Scenario
+
+
+def hover_cells_above_nodes(scenario: Scenario, count: int) -> list[int]:
+    """One cell a level above each node (deduplicated), for the first ``count`` distinct cells."""
+    cells: list[int] = []
+    for x, y, z in scenario.layout.positions_m:
+        c = scenario.cell_size_m
+        cell = (int(x // c), int(y // c), max(int(z // c) - 1, 0))
+        index = int(scenario.cell_index(cell))
+        if index not in cells:
+            cells.append(index)
+        if len(cells) == count:
+            break
+    return cells
+
+
+def perturbed(base: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
+    """The same problem with new channel values and remaining data (same coverage)."""
+    shape = base["snr_linear"].shape
+    shadow = 10.0 ** (rng.normal(0.0, 3.0, shape) / 10.0)
+    return {
+        **base,
+        "snr_linear": base["snr_linear"] * shadow,
+        "available_power_w": base["available_power_w"] * shadow,
+        "data_bits": base["data_bits"] * rng.uniform(0.2, 1.0, base["data_bits"].shape),
+    }
+
+
+def timed(fn) -> tuple[float, Any]:  # type: ignore[no-untyped-def]
+    start = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - start, out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--closed-form-nodes", type=int, default=100_000)
+    parser.add_argument("--nodes", type=int, default=50)
+    parser.add_argument("--hover", type=int, default=10)
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    rng = np.random.default_rng(args.seed)
+
+    scenario = Scenario.preset("paper", n_nodes=args.nodes)
+    inputs = ps.from_scenario(scenario, hover_cells_above_nodes(scenario, args.hover))
+    base = inputs.as_kwargs()
+    model = {k: base[k] for k in ("reward_weight", "bandwidth_hz", "efficiency", "data_ref_bits", "energy_ref_j")}
+    # many nodes for the closed form: the program's links, tiled and shadowed
+    covered = inputs.coverage_mask
+    n = args.closed_form_nodes
+    pick = rng.integers(0, int(covered.sum()), n)
+    shadow = 10.0 ** (rng.normal(0.0, 3.0, n) / 10.0)
+    snr_many = inputs.snr_linear[covered][pick] * shadow
+    p_many = inputs.available_power_w[covered][pick] * shadow
+
+    built = ps.DwellSplitProblem(covered)
+    built.solve(**base)  # the first solve canonicalises; re-solves below reuse it
+    ps.optimal_split_ratio(snr_many, p_many, **model)  # warm up
+    times: dict[str, list[float]] = {"closed": [], "build": [], "resolve": []}
+    statuses: list[str] = []
+    for _ in range(args.repeats):
+        values = perturbed(base, rng)
+        t, _ = timed(lambda: ps.optimal_split_ratio(snr_many, p_many, **model))
+        times["closed"].append(t)
+        t, fresh = timed(lambda: ps.optimise_dwell_and_split(**values))
+        times["build"].append(t)
+        t, again = timed(lambda: built.solve(**values))
+        times["resolve"].append(t)
+        statuses += [fresh.status, again.status]
+    med = {k: statistics.median(v) for k, v in times.items()}
+    k, pairs = covered.shape[0], int(covered.sum())
+    solver = fresh.solver
+    print(f"power split timings, median of {args.repeats} (statuses: {sorted(set(statuses))}, solver {solver})")
+    rows = [
+        (f"closed form, {n:,} nodes", med["closed"]),
+        (f"cvxpy build + solve, {k} hover x {args.nodes} nodes ({pairs} covered pairs)", med["build"]),
+        ("cvxpy re-solve of the built problem (DPP)", med["resolve"]),
+    ]
+    width = max(len(label) for label, _ in rows)
+    for label, seconds in rows:
+        print(f"  {label:<{width}}  {seconds * 1e3:9.3f} ms")
+    print(f"  ratio build+solve / re-solve:    {med['build'] / med['resolve']:8.2f}")
+    print(f"  ratio build+solve / closed form: {med['build'] / med['closed']:8.1f}")
+    print(f"  ratio re-solve / closed form:    {med['resolve'] / med['closed']:8.1f}")
+
+
+if __name__ == "__main__":
+    main()

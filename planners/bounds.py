@@ -1,0 +1,131 @@
+"""Bounds on what any policy can achieve in a scenario (SPEC 6, ``bounds``).
+
+:func:`upper_bound` is valid for every scenario: no policy collects more data than the
+coverable nodes hold, delivers more energy than their storage can take, or earns more
+reward than those two caps are worth (travel and hovering only cost). With a
+deterministic channel it is tightened by the episode length times the best per-step
+service any cell offers. :func:`exact_optimum` solves small deterministic instances
+(``tiny``) exactly by dynamic programming over the MDP, stepping the simulator kernel
+itself, so results can report optimality gaps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swiptopt import kernel as K
+from swiptopt.errors import ConfigError
+from swiptopt.harvesting import harvest_from_input_w
+from swiptopt.acoustics import shannon_rate_bps
+from swiptopt.scenario import Scenario
+
+
+@dataclass(frozen=True)
+class UpperBound:
+    """Upper bounds on an episode's return, data collected (bit) and energy delivered (J)."""
+
+    return_: float
+    data_bits: float
+    energy_delivered_j: float
+
+
+def upper_bound(scenario: Scenario) -> UpperBound:
+    """Bounds no policy can beat (SPEC 6): node caps, and per-step service for a
+    deterministic channel."""
+    t = K.build_tables(scenario)
+    p = t.params
+    gamma = p[K.P_GAMMA]
+    coverable = np.zeros(t.n_nodes, dtype=bool)
+    coverable[np.unique(t.cov_node)] = True
+    data_cap = float(t.data0[coverable].sum())
+    energy_cap = float((t.capacity - t.energy0)[coverable].sum())
+    if scenario.idle_drain_w > 0:
+        # a draining node can take energy again: its room is refilled by at most the drain
+        energy_cap += float(coverable.sum() * p[K.P_DRAIN_J] * scenario.episode_steps)
+    data_bound, energy_bound = data_cap, energy_cap
+    if scenario.channel == "none":
+        # the most any one step can deliver, from the best cell, ignoring every cap
+        dt = p[K.P_DT]
+        bits = dt * shannon_rate_bps(p[K.P_BW], p[K.P_ALPHA] * t.cov_snr)
+        joules = np.array([
+            dt * harvest_from_input_w((1 - p[K.P_ALPHA]) * pav, p[K.P_LOGISTIC] == 1.0, p[K.P_ETA], p[K.P_LMAX], p[K.P_LA], p[K.P_LB])
+            for pav in t.cov_pav
+        ])
+        cell_of_pair = np.repeat(np.arange(t.n_cells), np.diff(t.cov_ptr))
+        per_cell_bits = np.bincount(cell_of_pair, weights=bits, minlength=t.n_cells)
+        per_cell_joules = np.bincount(cell_of_pair, weights=joules, minlength=t.n_cells)
+        data_bound = min(data_cap, scenario.episode_steps * float(per_cell_bits.max()))
+        energy_bound = min(energy_cap, scenario.episode_steps * float(per_cell_joules.max()))
+        step_reward = gamma * per_cell_bits / p[K.P_DATA_REF] + (1 - gamma) * per_cell_joules / p[K.P_ENERGY_REF]
+        reward_cap = gamma * data_cap / p[K.P_DATA_REF] + (1 - gamma) * energy_cap / p[K.P_ENERGY_REF]
+        return UpperBound(
+            float(min(reward_cap, scenario.episode_steps * float(step_reward.max()))), data_bound, energy_bound
+        )
+    reward_cap = gamma * data_cap / p[K.P_DATA_REF] + (1 - gamma) * energy_cap / p[K.P_ENERGY_REF]
+    return UpperBound(float(reward_cap), data_bound, energy_bound)
+
+
+@dataclass(frozen=True, eq=False)
+class ExactOptimum:
+    """The best return of a deterministic scenario and one action sequence that earns it."""
+
+    return_: float
+    actions: list[int]
+    states_explored: int
+
+
+def exact_optimum(scenario: Scenario, *, max_states: int = 3_000_000) -> ExactOptimum:
+    """Exact optimum by forward dynamic programming over the deterministic MDP.
+
+    States are (cell, node data left, node energy), merged when equal to 1 mbit and 1 nJ;
+    each layer t keeps the best return reaching every state. The returned actions, replayed
+    in the environment, earn the returned value (the tests check this). Needs ``channel="none"`` and no link failures;
+    ``max_states`` bounds the work (an error names it when exceeded).
+    """
+    if scenario.channel != "none" or scenario.failure_prob_max > 0:
+        raise ConfigError(
+            "exact_optimum needs a deterministic scenario: channel = 'none' and failure_prob_max = 0",
+            "channel",
+        )
+    t = K.build_tables(scenario)
+    step = K.compiled("step") if K.numba_available() else K.step
+    uniforms, normals = K.noise_buffers(t)
+    start = K.new_state(t)
+    start.where[K.W_UPTR] = start.where[K.W_ZPTR] = 0  # no draws are read (deterministic)
+
+    def key(s: K.EpisodeState) -> bytes:
+        # node states reached by the same service in another order differ only by float
+        # rounding; merge them at 1 mbit and 1 nJ, far below anything the reward can see
+        return (
+            int(s.where[K.W_CELL]).to_bytes(4, "little")
+            + np.round(s.data_left, 3).tobytes()
+            + np.round(s.energy, 9).tobytes()
+        )
+
+    layer = {key(start): (0.0, start, [])}
+    best_return, best_actions = -np.inf, []
+    explored = 0
+    for _ in range(scenario.episode_steps):
+        nxt: dict[bytes, tuple[float, K.EpisodeState, list[int]]] = {}
+        for value, state, actions in layer.values():
+            for a in range(K.N_ACTIONS):
+                s = state.copy()
+                code = step(a, uniforms, normals, *K.step_args(t, s))
+                explored += 1
+                r = float(s.parts[0] + s.parts[1] + s.parts[2])
+                total = value + r
+                if code != K.RUNNING:
+                    if total > best_return:
+                        best_return, best_actions = total, actions + [a]
+                    continue
+                k = key(s)
+                if k not in nxt or total > nxt[k][0]:
+                    nxt[k] = (total, s, actions + [a])
+        if explored > max_states:
+            raise ConfigError(f"exact_optimum explored more than max_states = {max_states} states", "max_states")
+        layer = nxt
+        if not layer:
+            break
+    return ExactOptimum(float(best_return), best_actions, explored)

@@ -1,0 +1,335 @@
+"""Planners that run in the environment: plans turned into env actions (SPEC 6, ``policies``).
+
+Each planner is a policy with ``predict(obs, deterministic=True)`` and
+``begin_episode(env, obs, info)``, so :func:`swiptopt.evaluate` scores it exactly like an RL
+agent, through the same simulator kernel. A plan is a list of stops (hover cell, service
+steps); the AUV moves between stops along shortest 6-connected grid paths (which respect
+obstacles) and hovers at each stop. ``begin_episode`` hands the planner the unwrapped
+environment, whose state it reads to react: it lingers while covered nodes still hold data
+(a link failure delayed them) and skips stops whose nodes are already served.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from planners.clustering import coverage_tables, hover_link, kmeans_hover_points
+from planners.grid import bfs_distances
+from swiptopt import kernel as K
+from swiptopt.errors import ConfigError
+from swiptopt.scenario import Scenario
+
+# the move that undoes each move (used to walk a BFS tree grown from the target)
+_REVERSE = np.array([1, 0, 3, 2, 5, 4, 6])
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Hover at ``cell`` for ``steps`` service steps (the arrival step counts as the first)."""
+
+    cell: int
+    steps: int
+
+
+@dataclass
+class Plan:
+    """An ordered list of stops and how it was made."""
+
+    stops: list[Stop]
+    status: str = "ok"
+    """How the plan was made, e.g. which solver statuses it rests on."""
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+class _Executor:
+    """Follows a :class:`Plan` in the environment, one action per ``predict``."""
+
+    def __init__(self, *, linger_steps: int = 2):
+        if isinstance(linger_steps, bool) or not isinstance(linger_steps, int) or linger_steps < 0:
+            raise ConfigError(f"linger_steps = {linger_steps!r} must be a non-negative integer", "linger_steps")
+        self.linger_steps = linger_steps
+        self._env: Any = None
+        self._trees: dict[int, np.ndarray] = {}
+
+    # the planning itself, per subclass
+    def make_plan(self, env: Any) -> Plan:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def begin_episode(self, env: Any, obs: Any = None, info: Any = None) -> None:
+        """Plan for ``env`` (the unwrapped :class:`~swiptopt.env.AuvSwiptEnv`) after a reset."""
+        if env is not self._env:
+            self._env = env
+            self._trees = {}
+            self.plan_ = self.make_plan(env)
+        self._stop = 0
+        self._served_steps = 0
+        self._lingered = 0
+
+    def _toward(self, cell: int, target: int) -> int:
+        tree = self._trees.get(target)
+        if tree is None:
+            _, tree = bfs_distances(self._env.tables.next_cell, target)
+            self._trees[target] = tree
+        via = tree[0, cell]
+        if via < 0:
+            raise ValueError(f"cell {target} cannot be reached from cell {cell}")
+        return int(_REVERSE[via])
+
+    def _pending_here(self, cell: int) -> bool:
+        """Whether a node covered from ``cell`` still holds data."""
+        nodes = self._env.tables.covered(cell)
+        return bool(np.any(self._env.state.data_left[nodes] > 0))
+
+    def _needs_service(self, cell: int) -> bool:
+        t, s = self._env.tables, self._env.state
+        gamma = t.params[K.P_GAMMA]
+        return any(not K.is_served(s.data_left, s.energy, t.capacity, gamma, i) for i in t.covered(cell))
+
+    def predict(self, obs: Any, deterministic: bool = True) -> int:
+        if self._env is None or self._env.state is None:
+            raise RuntimeError("call begin_episode(env, obs, info) after each reset (swiptopt.evaluate does)")
+        cell = self._env.state.cell
+        stops = self.plan_.stops
+        while self._stop < len(stops):
+            stop = stops[self._stop]
+            if cell != stop.cell:
+                if self._served_steps == 0 and not self._needs_service(stop.cell):
+                    self._stop += 1  # nothing left to do there
+                    continue
+                return self._toward(cell, stop.cell)
+            if self._served_steps == 0:
+                self._served_steps = 1  # the arrival step served
+            if self._served_steps < stop.steps:
+                self._served_steps += 1
+                return K.HOVER
+            if self._lingered < self.linger_steps and self._pending_here(cell):
+                self._lingered += 1
+                return K.HOVER
+            self._stop += 1
+            self._served_steps = 0
+            self._lingered = 0
+        return K.HOVER
+
+
+def _scenario_of(env: Any) -> Scenario:
+    return env.scenario
+
+
+class KMeansTspPlanner(_Executor):
+    """k-means hover points -> TSP tour -> convex dwell times -> grid moves and hovers.
+
+    Tour costs are 3D distances between cell centres, or OMPL path lengths where the
+    scenario has obstacles (``use_ompl=None`` decides by that). The dwell time at each
+    stop comes from :func:`planners.power_split.optimise_dwell_and_split` under the time
+    left after travel; the environment applies the scenario's own split ratio, so the
+    program's per-node split ratios are advice the simulator does not take.
+    """
+
+    def __init__(
+        self,
+        *,
+        k: int | None = None,
+        tsp_method: str = "auto",
+        tsp_time_limit_s: float = 1.0,
+        use_ompl: bool | None = None,
+        ompl_time_limit_s: float = 0.2,
+        seed: int = 0,
+        linger_steps: int = 2,
+    ):
+        super().__init__(linger_steps=linger_steps)
+        self.k = k
+        self.tsp_method = tsp_method
+        self.tsp_time_limit_s = tsp_time_limit_s
+        self.use_ompl = use_ompl
+        self.ompl_time_limit_s = ompl_time_limit_s
+        self.seed = seed
+
+    def make_plan(self, env: Any) -> Plan:
+        from planners.power_split import optimise_dwell_and_split
+        from planners.tsp import solve_tsp
+
+        scenario = _scenario_of(env)
+        tables = env.tables
+        hover = kmeans_hover_points(scenario, self.k, rng=self.seed)
+        if hover.k == 0:
+            return Plan([], status="no coverable nodes")
+        start = tables.start_cell
+        cells = [start] + [int(c) for c in hover.cells]
+        centres = scenario.cell_centers_m[cells]
+        use_ompl = bool(scenario.obstacles or scenario.seabed_height_m) if self.use_ompl is None else self.use_ompl
+        if use_ompl:
+            costs = self._ompl_costs(scenario, cells)
+        else:
+            costs = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=-1)
+        tour = solve_tsp(costs, start=0, closed=False, time_limit_s=self.tsp_time_limit_s, method=self.tsp_method)
+        order = [cells[i] for i in tour.order[1:]]
+
+        # moves along the grid between consecutive stops; drop the tail that does not fit
+        moves = []
+        here = start
+        for c in order:
+            dist, _ = bfs_distances(tables.next_cell, here)
+            moves.append(int(dist[c]))
+            here = c
+        steps = scenario.episode_steps
+        keep = len(order)
+        while keep and sum(moves[:keep]) > steps:
+            keep -= 1
+        order, moves = order[:keep], moves[:keep]
+        if not order:
+            return Plan([], status="no stop within the episode")
+        service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
+
+        index = [cells.index(c) - 1 for c in order]
+        snr, p_av = hover_link(scenario, np.asarray(order))
+        layout = scenario.layout
+        from swiptopt.link import auv_power, reward_references
+
+        refs = reward_references(scenario)
+        result = optimise_dwell_and_split(
+            snr_linear=snr,
+            available_power_w=p_av,
+            data_bits=layout.data_bits,
+            storage_room_j=layout.capacity_j - layout.initial_energy_j,
+            mission_time_s=service_steps * scenario.step_duration_s,
+            reward_weight=scenario.reward_weight,
+            bandwidth_hz=scenario.bandwidth_hz,
+            efficiency=scenario.harvest_efficiency,
+            data_ref_bits=refs.data_ref_bits,
+            energy_ref_j=refs.energy_ref_j,
+        )
+        if result.dwell_s is not None:
+            wanted = np.asarray(result.dwell_s) / scenario.step_duration_s
+        else:
+            wanted = np.full(len(order), service_steps / len(order))
+        dwell = _integer_steps(wanted, service_steps)
+        stops = [Stop(c, int(d)) for c, d in zip(order, dwell)]
+        return Plan(
+            stops,
+            status=f"tsp {tour.status}, dwell {result.status}",
+            details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": sum(moves),
+                     "power_split": result, "hover_index": index, "auv_power": auv_power(scenario)},
+        )
+
+    def _ompl_costs(self, scenario: Scenario, cells: list[int]) -> np.ndarray:
+        """OMPL path lengths between the stops; where OMPL finds no exact path in its time
+        limit, the grid's shortest path length (always exact for the executed moves)."""
+        from planners.grid import distance_matrix
+        from planners.paths3d import plan_path_3d
+
+        centres = scenario.cell_centers_m[cells]
+        grid = distance_matrix(K.build_tables(scenario).next_cell, cells) * scenario.cell_size_m
+        costs = grid.copy()
+        for i in range(len(cells)):
+            for j in range(i + 1, len(cells)):
+                result = plan_path_3d(centres[i], centres[j], scenario, time_limit_s=self.ompl_time_limit_s, seed=self.seed)
+                if result.exact:
+                    costs[i, j] = costs[j, i] = result.length_m
+        return costs
+
+
+def _integer_steps(wanted: np.ndarray, total: int) -> np.ndarray:
+    """Whole service steps per stop, at least one each, summing to ``total`` (largest remainder)."""
+    n = len(wanted)
+    if total <= n:
+        return np.ones(n, dtype=np.int64)
+    share = np.maximum(np.asarray(wanted, dtype=float), 0.0)
+    share = share / share.sum() * (total - n) if share.sum() > 0 else np.full(n, (total - n) / n)
+    steps = np.floor(share).astype(np.int64)
+    rest = total - n - int(steps.sum())
+    steps[np.argsort(-(share - steps), kind="stable")[:rest]] += 1
+    return steps + 1
+
+
+class LawnmowerPlanner(_Executor):
+    """The standard survey sweep: parallel lanes along x at one depth, lanes spaced by the
+    coverage footprint, lingering where covered nodes still hold data."""
+
+    def __init__(self, *, depth_cell: int = 0, lane_spacing_cells: int | None = None, linger_steps: int = 2):
+        super().__init__(linger_steps=linger_steps)
+        self.depth_cell = depth_cell
+        self.lane_spacing_cells = lane_spacing_cells
+
+    def make_plan(self, env: Any) -> Plan:
+        scenario = _scenario_of(env)
+        nx, ny, nz = scenario.grid_shape
+        if not 0 <= self.depth_cell < nz:
+            raise ConfigError(f"depth_cell = {self.depth_cell} is outside the grid's 0..{nz - 1}", "depth_cell")
+        spacing = self.lane_spacing_cells
+        if spacing is None:
+            depth = (self.depth_cell + 0.5) * scenario.cell_size_m
+            nodes = scenario.layout.positions_m[:, 2]
+            below = nodes[nodes > depth]
+            reach = (np.median(below) - depth) if below.size else scenario.cell_size_m
+            radius = reach * math.tan(math.radians(scenario.cone_half_angle_deg))
+            spacing = max(1, int(2 * radius // scenario.cell_size_m))
+        lanes = list(range(min(spacing // 2, ny - 1), ny, spacing))
+        free = ~scenario.blocked_cells
+        stops = []
+        for n, j in enumerate(lanes):
+            xs = range(nx) if n % 2 == 0 else range(nx - 1, -1, -1)
+            for i in xs:
+                c = int(scenario.cell_index((i, j, self.depth_cell)))
+                if free[c]:
+                    stops.append(Stop(c, 1))
+        return Plan(stops, details={"lane_spacing_cells": spacing, "lanes": lanes})
+
+    def _needs_service(self, cell: int) -> bool:
+        return True  # a survey visits every waypoint
+
+
+class GreedyPlanner(_Executor):
+    """Go to the nearest node still to serve (by grid moves to its best hover cell), hover
+    until it is served or ``max_dwell_steps`` pass, repeat."""
+
+    def __init__(self, *, max_dwell_steps: int = 8):
+        super().__init__(linger_steps=0)
+        if isinstance(max_dwell_steps, bool) or not isinstance(max_dwell_steps, int) or max_dwell_steps < 1:
+            raise ConfigError(f"max_dwell_steps = {max_dwell_steps!r} must be a positive integer", "max_dwell_steps")
+        self.max_dwell_steps = max_dwell_steps
+
+    def make_plan(self, env: Any) -> Plan:
+        covered, power = coverage_tables(_scenario_of(env))
+        # each node's best hover cell: the covering cell with the most received power
+        self._best_cell = np.where(covered.any(axis=0), np.argmax(np.where(covered, power, -1.0), axis=0), -1)
+        return Plan([], status="online")
+
+    def begin_episode(self, env: Any, obs: Any = None, info: Any = None) -> None:
+        super().begin_episode(env, obs, info)
+        self._target = -1
+        self._dwell = 0
+        self._given_up: set[int] = set()
+
+    def predict(self, obs: Any, deterministic: bool = True) -> int:
+        if self._env is None or self._env.state is None:
+            raise RuntimeError("call begin_episode(env, obs, info) after each reset (swiptopt.evaluate does)")
+        t, s = self._env.tables, self._env.state
+        gamma = t.params[K.P_GAMMA]
+        cell = s.cell
+        if self._target >= 0:
+            done = K.is_served(s.data_left, s.energy, t.capacity, gamma, self._target)
+            if done or self._dwell >= self.max_dwell_steps:
+                if not done:
+                    self._given_up.add(self._target)
+                self._target = -1
+        if self._target < 0:
+            dist, _ = bfs_distances(t.next_cell, cell)
+            best, best_d = -1, None
+            for i in range(t.n_nodes):
+                c = self._best_cell[i]
+                if c < 0 or i in self._given_up or K.is_served(s.data_left, s.energy, t.capacity, gamma, i):
+                    continue
+                if dist[c] >= 0 and (best_d is None or dist[c] < best_d):
+                    best, best_d = i, dist[c]
+            if best < 0:
+                return K.HOVER
+            self._target, self._dwell = best, 0
+        target_cell = int(self._best_cell[self._target])
+        if cell != target_cell:
+            return self._toward(cell, target_cell)
+        self._dwell += 1
+        return K.HOVER

@@ -1,0 +1,697 @@
+"""Power splitting and dwell times at hover points: a closed form and a convex program (SPEC 6).
+
+Model (linear harvester, SPEC 3.2). A node whose link has SNR gamma (linear, before
+splitting) and available power P_av, served for t seconds with split ratio alpha, receives
+``t B log2(1 + alpha gamma)`` bits and harvests ``t eta (1 - alpha) P_av`` joules. The value
+of a service is the reward's weighting (SPEC 4, paper eq. 18 without the movement term)::
+
+    Gamma bits / D_ref + (1 - Gamma) joules / E_ref.
+
+**One node, per second** (:func:`optimal_split_ratio`). The value rate
+
+    f(alpha) = Gamma B log2(1 + alpha gamma) / D_ref + (1 - Gamma) eta (1 - alpha) P_av / E_ref
+
+is concave in alpha, with f'(alpha) = Gamma B gamma / (ln2 (1 + alpha gamma) D_ref)
+- (1 - Gamma) eta P_av / E_ref. Setting f' = 0 gives 1 + alpha gamma = Gamma B gamma E_ref /
+(ln2 (1 - Gamma) eta P_av D_ref), so
+
+    alpha* = clip(Gamma B E_ref / (ln2 (1 - Gamma) eta P_av D_ref) - 1 / gamma, 0, 1)
+
+(SPEC 6's formula when D_ref = E_ref = 1); concavity makes the clipped stationary point
+the maximiser on [0, 1]. Limits: Gamma = 1 (or nothing to harvest) gives 1; Gamma = 0 (or
+gamma = 0, nothing to decode) gives 0.
+
+**Many hover points and nodes** (:class:`DwellSplitProblem`, :func:`optimise_dwell_and_split`).
+Dwell t_k >= 0 at hover point k, split alpha_ik for each covered pair. With beta_ik =
+alpha_ik t_k the bits are the perspective ``t B log2(1 + gamma beta / t)`` of a concave
+function, hence jointly concave in (t, beta); the energy ``eta P_av (t - beta)`` is linear.
+As in the simulator, only data still to deliver and energy still storable count, so each
+pair's counted bits and joules are variables bounded above by what the link carries, and
+each node's totals are capped. Maximise the weighted value under a dwell-time budget
+sum_k t_k <= T and/or an AUV energy budget sum_k P_dwell,k t_k <= E_budget, optionally
+with a minimum energy per node. Every constraint is convex, so the optimum is global.
+
+DCP form of the bits: t ln(1 + gamma beta / t) = -rel_entr(t, t + gamma beta). Acoustic
+SNRs reach 1e10, which would put coefficients of 1e10 next to 1 in the cone constraints; we
+use the same function written with c = max(gamma, 1),
+
+    t ln(1 + gamma beta / t) = t ln c - rel_entr(t, t / c + (gamma / c) beta),
+
+whose coefficients ln c, 1/c and gamma/c are all moderate. The problem is built once with
+``cvxpy.Parameter`` s (DPP): re-solving with new SNRs, powers, caps, weights or budgets
+skips cvxpy's canonicalisation. What is structural: the coverage pattern (which pairs
+exist) and which budgets are present.
+
+Once every cap binds, more dwell adds nothing, so the optimal dwell is not unique; a cost of
+:data:`DWELL_TIE_BREAK` times the best pair's value rate per second of dwell selects the
+shortest optimal dwell (the reported objective leaves it out). The solver is Clarabel
+(interior point, exponential cone) when installed, else SCS.
+
+cvxpy (and scipy) are imported inside the functions that use them, so ``import planners``
+stays light.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from swiptopt.coverage import covered_nodes, slant_distances_m
+from swiptopt.errors import ConfigError
+from swiptopt.link import auv_power, link_budget, reward_references
+
+if TYPE_CHECKING:
+    import cvxpy as cp
+
+    from swiptopt.scenario import Scenario
+
+LN2 = math.log(2.0)
+
+#: Solvers tried in order: both handle the exponential cone. Clarabel (interior point,
+#: accurate to ~1e-8) is cvxpy's default; SCS (first order, looser) is the fallback.
+PREFERRED_SOLVERS = ("CLARABEL", "SCS")
+
+#: A dwell shorter than this fraction of the longest dwell counts as zero (no split ratio).
+ZERO_DWELL_FRACTION = 1e-9
+
+#: Once every cap binds, extra dwell adds nothing and the optimal dwell is not unique; a
+#: cost of this fraction of the best pair's value rate per second of dwell picks the
+#: shortest optimal dwell. It moves the value by at most this fraction times the budget's
+#: worth of the best pair; the reported objective is the value without it.
+DWELL_TIE_BREAK = 1e-6
+
+STATUSES = ("optimal", "optimal_inaccurate", "infeasible", "unbounded", "solver_error")
+
+
+# ------------------------------------------------------------------------ validation
+
+
+def _scalar(name: str, value: Any, *, lo: float = 0.0, hi: float = math.inf, lo_open: bool = False) -> float:
+    """A finite number in [lo, hi] (or (lo, hi] with ``lo_open``), else ConfigError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"{name} = {value!r} must be a number", name)
+    x = float(value)
+    too_low = x <= lo if lo_open else x < lo
+    if not math.isfinite(x) or too_low or x > hi:
+        left = "(" if lo_open else "["
+        right = "]" if math.isfinite(hi) else ")"
+        raise ConfigError(f"{name} = {value!r} is out of range: must be in {left}{lo:g}, {hi:g}{right}", name)
+    return x
+
+
+def _array(name: str, value: Any, shape: tuple[int, ...] | None = None, *, hi: float = math.inf) -> np.ndarray:
+    """A float array of finite values in [0, hi] (of ``shape`` if given), else ConfigError."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be an array of numbers", name) from None
+    if shape is not None and a.shape != shape:
+        raise ConfigError(f"{name} has shape {a.shape}, expected {shape}", name)
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"{name} must be finite (no NaN or inf)", name)
+    if np.any(a < 0) or np.any(a > hi):
+        raise ConfigError(f"{name} must lie in [0, {hi:g}], got min {a.min():g}, max {a.max():g}", name)
+    return a
+
+
+def _model_scalars(
+    reward_weight: float, bandwidth_hz: float, efficiency: float, data_ref_bits: float, energy_ref_j: float
+) -> tuple[float, float, float, float, float]:
+    return (
+        _scalar("reward_weight", reward_weight, hi=1.0),
+        _scalar("bandwidth_hz", bandwidth_hz, lo_open=True),
+        _scalar("efficiency", efficiency, hi=1.0),
+        _scalar("data_ref_bits", data_ref_bits, lo_open=True),
+        _scalar("energy_ref_j", energy_ref_j, lo_open=True),
+    )
+
+
+# ------------------------------------------------------------------------ closed form
+
+
+def split_value_rate(
+    split_ratio: ArrayLike,
+    snr_linear: ArrayLike,
+    available_power_w: ArrayLike,
+    *,
+    reward_weight: float,
+    bandwidth_hz: float,
+    efficiency: float,
+    data_ref_bits: float = 1.0,
+    energy_ref_j: float = 1.0,
+) -> np.ndarray:
+    """Weighted value per second of serving a node with split ``split_ratio``, 1/s (broadcast).
+
+    Gamma B log2(1 + alpha gamma) / D_ref + (1 - Gamma) eta (1 - alpha) P_av / E_ref
+    (SPEC 3.2 rate and linear harvester, SPEC 4 weighting); no caps.
+    """
+    gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
+    alpha = _array("split_ratio", split_ratio, hi=1.0)
+    gamma = _array("snr_linear", snr_linear)
+    p_av = _array("available_power_w", available_power_w)
+    bits_per_s = bw * np.log1p(alpha * gamma) / LN2
+    joules_per_s = eta * (1.0 - alpha) * p_av
+    return gw * bits_per_s / d_ref + (1.0 - gw) * joules_per_s / e_ref
+
+
+def optimal_split_ratio(
+    snr_linear: ArrayLike,
+    available_power_w: ArrayLike,
+    *,
+    reward_weight: float,
+    bandwidth_hz: float,
+    efficiency: float,
+    data_ref_bits: float = 1.0,
+    energy_ref_j: float = 1.0,
+) -> np.ndarray:
+    """The split ratio alpha* in [0, 1] maximising :func:`split_value_rate`, closed form.
+
+    alpha* = clip(Gamma B E_ref / (ln2 (1 - Gamma) eta P_av D_ref) - 1/gamma, 0, 1) (SPEC 6;
+    derivation in the module docstring). ``snr_linear`` and ``available_power_w`` broadcast
+    (e.g. (n_hover, n_nodes)); the result has their broadcast shape. Edge cases: 1 where
+    energy is worthless (Gamma = 1, eta = 0 or P_av = 0) and gamma > 0; 0 where data is
+    worthless (Gamma = 0) or cannot be decoded (gamma = 0).
+    """
+    gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
+    gamma, p_av = np.broadcast_arrays(_array("snr_linear", snr_linear), _array("available_power_w", available_power_w))
+    numerator = gw * bw * e_ref
+    denominator = LN2 * (1.0 - gw) * eta * p_av * d_ref
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # 1 + alpha gamma at the stationary point, divided by gamma
+        target = np.where(numerator == 0.0, 0.0, np.where(denominator == 0.0, np.inf, numerator / denominator))
+        alpha = np.clip(target - 1.0 / gamma, 0.0, 1.0)
+    return np.where(gamma > 0.0, alpha, 0.0)
+
+
+# ------------------------------------------------------------------------ the program
+
+
+@dataclass(frozen=True, eq=False)
+class PowerSplitResult:
+    """Outcome of one solve of the dwell-time and power-split program.
+
+    The arrays and the objective are set only when ``status`` is ``"optimal"`` or
+    ``"optimal_inaccurate"``; otherwise they are ``None``.
+    """
+
+    status: str
+    """One of ``"optimal"``, ``"optimal_inaccurate"``, ``"infeasible"``, ``"unbounded"``, ``"solver_error"``."""
+    objective: float | None
+    """Weighted value sum Gamma bits / D_ref + (1 - Gamma) joules / E_ref (counted amounts)."""
+    dwell_s: np.ndarray | None
+    """(n_hover,) dwell time at each hover point, s."""
+    split_ratio: np.ndarray | None
+    """(n_hover, n_nodes) alpha in [0, 1]; NaN where not covered or where the dwell is zero."""
+    bits: np.ndarray | None
+    """(n_hover, n_nodes) counted bits collected (within the node's data cap), 0 where not covered."""
+    energy_j: np.ndarray | None
+    """(n_hover, n_nodes) counted joules delivered (within the node's storage room), 0 where not covered."""
+    solve_time_s: float
+    """Wall-clock time of the solve (including cvxpy's compilation on a first solve), s; set for every status."""
+    solver: str
+    """Name of the cvxpy solver used (``""`` when no solver was needed or none was available)."""
+
+    @property
+    def ok(self) -> bool:
+        """Whether a solution is available (optimal or optimal_inaccurate)."""
+        return self.status in ("optimal", "optimal_inaccurate")
+
+
+def _failed(status: str, solve_time_s: float, solver: str) -> PowerSplitResult:
+    return PowerSplitResult(status, None, None, None, None, None, solve_time_s, solver)
+
+
+def default_solver() -> str | None:
+    """The first of :data:`PREFERRED_SOLVERS` that cvxpy has installed (``None`` if neither)."""
+    import cvxpy as cp
+
+    installed = set(cp.installed_solvers())
+    return next((s for s in PREFERRED_SOLVERS if s in installed), None)
+
+
+def _status(cvxpy_status: str) -> str:
+    import cvxpy as cp
+
+    if cvxpy_status == cp.OPTIMAL:
+        return "optimal"
+    if cvxpy_status == cp.OPTIMAL_INACCURATE:
+        return "optimal_inaccurate"
+    if cvxpy_status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE):
+        return "infeasible"
+    if cvxpy_status in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):
+        return "unbounded"
+    return "solver_error"  # user limit, numerical trouble, anything unknown
+
+
+class DwellSplitProblem:
+    """The joint dwell-time / power-split program for one coverage pattern, built once.
+
+    ``coverage_mask`` (n_hover, n_nodes) bool says which hover point covers which node; it
+    and the presence of each budget are structural. Everything else is a ``cvxpy.Parameter``
+    set by :meth:`solve`, so repeated solves (new SNRs, powers, remaining data, budgets,
+    weights) skip canonicalisation. The cvxpy problem is built on first use
+    (:attr:`problem`). An instance holds one set of parameter values at a time: do not
+    share it between threads.
+
+    Arguments:
+        coverage_mask: (n_hover, n_nodes) bool.
+        time_budget: include sum_k t_k <= mission_time_s.
+        energy_budget: include sum_k dwell_power_w[k] t_k <= energy_budget_j.
+        solver: a cvxpy solver name; default :func:`default_solver` (Clarabel, else SCS).
+        solver_options: keyword arguments passed to the solver (e.g. tolerances, iteration limits).
+    """
+
+    def __init__(
+        self,
+        coverage_mask: ArrayLike,
+        *,
+        time_budget: bool = True,
+        energy_budget: bool = False,
+        solver: str | None = None,
+        solver_options: Mapping[str, Any] | None = None,
+    ) -> None:
+        mask = np.asarray(coverage_mask)
+        if mask.ndim != 2 or mask.dtype != bool:
+            raise ConfigError(
+                f"coverage_mask must be a 2-D bool array (n_hover, n_nodes), got {mask.dtype} {mask.shape}",
+                "coverage_mask",
+            )
+        if mask.shape[0] < 1 or mask.shape[1] < 1:
+            raise ConfigError(
+                f"coverage_mask needs at least one hover point and one node, got {mask.shape}", "coverage_mask"
+            )
+        if not (time_budget or energy_budget):
+            raise ConfigError("give a time budget, an energy budget or both", "time_budget")
+        self.coverage_mask = mask.copy()
+        self.coverage_mask.setflags(write=False)
+        self.time_budget = bool(time_budget)
+        self.energy_budget = bool(energy_budget)
+        self.solver = solver
+        self.solver_options = dict(solver_options or {})
+        self._hover_of_pair, self._node_of_pair = np.nonzero(self.coverage_mask)
+        self._served_nodes = np.flatnonzero(self.coverage_mask.any(axis=0))
+        self._problem: cp.Problem | None = None
+        self._vars: dict[str, Any] = {}
+        self._params: dict[str, Any] = {}
+
+    @property
+    def n_hover(self) -> int:
+        return int(self.coverage_mask.shape[0])
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.coverage_mask.shape[1])
+
+    @property
+    def n_pairs(self) -> int:
+        """Number of covered (hover point, node) pairs."""
+        return int(self._hover_of_pair.size)
+
+    @property
+    def problem(self) -> cp.Problem:
+        """The parametrised cvxpy problem, built on first access (needs at least one covered pair)."""
+        if self._problem is None:
+            if self.n_pairs == 0:
+                raise ConfigError("no hover point covers any node: there is nothing to optimise", "coverage_mask")
+            self._build()
+        return self._problem  # type: ignore[return-value]
+
+    def _build(self) -> None:
+        import cvxpy as cp
+        import scipy.sparse as sp
+
+        n_pairs, n_served = self.n_pairs, self._served_nodes.size
+        # sums a per-pair vector into per-served-node totals
+        node_row = np.searchsorted(self._served_nodes, self._node_of_pair)
+        per_node = sp.csr_matrix((np.ones(n_pairs), (node_row, np.arange(n_pairs))), shape=(n_served, n_pairs))
+
+        dwell = cp.Variable(self.n_hover, nonneg=True, name="dwell_s")
+        beta = cp.Variable(n_pairs, nonneg=True, name="split_time_s")  # alpha * t, s
+        info = cp.Variable(n_pairs, nonneg=True, name="info_nat_per_hz")  # counted bits * ln2 / B
+        energy = cp.Variable(n_pairs, nonneg=True, name="energy_ref_units")  # counted joules / E_ref
+
+        p = {
+            "log_c": cp.Parameter(n_pairs, name="log_c"),
+            "inv_c": cp.Parameter(n_pairs, nonneg=True, name="inv_c"),
+            "snr_over_c": cp.Parameter(n_pairs, nonneg=True, name="snr_over_c"),
+            "harvest_rate": cp.Parameter(n_pairs, nonneg=True, name="harvest_rate_per_s"),
+            "info_cap": cp.Parameter(n_served, nonneg=True, name="info_cap"),
+            "room": cp.Parameter(n_served, nonneg=True, name="room"),
+            "min_energy": cp.Parameter(n_served, nonneg=True, name="min_energy"),
+            "w_info": cp.Parameter(nonneg=True, name="w_info"),
+            "w_energy": cp.Parameter(nonneg=True, name="w_energy"),
+            "tie_break": cp.Parameter(nonneg=True, name="dwell_tie_break"),
+        }
+        t_pair = dwell[self._hover_of_pair]
+        # t ln(1 + gamma beta / t) = t ln c - rel_entr(t, t/c + (gamma/c) beta), c = max(gamma, 1)
+        capacity = cp.multiply(p["log_c"], t_pair) - cp.rel_entr(
+            t_pair, cp.multiply(p["inv_c"], t_pair) + cp.multiply(p["snr_over_c"], beta)
+        )
+        constraints = [
+            beta <= t_pair,
+            info <= capacity,
+            energy <= cp.multiply(p["harvest_rate"], t_pair - beta),
+            per_node @ info <= p["info_cap"],
+            per_node @ energy <= p["room"],
+            per_node @ energy >= p["min_energy"],
+        ]
+        if self.time_budget:
+            p["time_budget"] = cp.Parameter(nonneg=True, name="mission_time_s")
+            constraints.append(cp.sum(dwell) <= p["time_budget"])
+        if self.energy_budget:
+            p["dwell_power"] = cp.Parameter(self.n_hover, nonneg=True, name="dwell_power_w")
+            p["energy_budget"] = cp.Parameter(nonneg=True, name="energy_budget_j")
+            constraints.append(p["dwell_power"] @ dwell <= p["energy_budget"])
+        value = p["w_info"] * cp.sum(info) + p["w_energy"] * cp.sum(energy)
+        objective = cp.Maximize(value - p["tie_break"] * cp.sum(dwell))
+        self._problem = cp.Problem(objective, constraints)
+        self._vars = {"dwell": dwell, "beta": beta, "info": info, "energy": energy, "value": value}
+        self._params = p
+
+    def solve(
+        self,
+        *,
+        snr_linear: ArrayLike,
+        available_power_w: ArrayLike,
+        data_bits: ArrayLike,
+        storage_room_j: ArrayLike,
+        reward_weight: float,
+        bandwidth_hz: float,
+        efficiency: float,
+        mission_time_s: float | None = None,
+        energy_budget_j: float | None = None,
+        dwell_power_w: float | ArrayLike | None = None,
+        min_energy_j: ArrayLike | None = None,
+        data_ref_bits: float = 1.0,
+        energy_ref_j: float = 1.0,
+    ) -> PowerSplitResult:
+        """Set the parameters and solve; see :func:`optimise_dwell_and_split` for the arguments.
+
+        ``available_power_w`` must be 0 outside the coverage mask the problem was built for,
+        and ``snr_linear`` > 0 inside it (values outside are ignored).
+        """
+        shape = self.coverage_mask.shape
+        k_of, i_of = self._hover_of_pair, self._node_of_pair
+        gamma = _array("snr_linear", snr_linear, shape)
+        p_av = _array("available_power_w", available_power_w, shape)
+        if np.any(p_av[~self.coverage_mask] > 0):
+            raise ConfigError(
+                "available_power_w is positive at a pair outside the coverage mask the problem was built for",
+                "available_power_w",
+            )
+        if np.any(gamma[self.coverage_mask] <= 0):
+            raise ConfigError("snr_linear must be > 0 at every covered pair", "snr_linear")
+        data = _array("data_bits", data_bits, shape[1:])
+        room = _array("storage_room_j", storage_room_j, shape[1:])
+        min_energy = np.zeros(shape[1]) if min_energy_j is None else _array("min_energy_j", min_energy_j, shape[1:])
+        gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
+        budgets = self._budgets(mission_time_s, energy_budget_j, dwell_power_w)
+
+        solver = self.solver or default_solver()
+        unserved = np.ones(shape[1], dtype=bool)
+        unserved[self._served_nodes] = False
+        if np.any(min_energy[unserved] > 0):
+            # no cone constraint needed to see that an uncovered node receives nothing
+            return _failed("infeasible", 0.0, "")
+        if self.n_pairs == 0:
+            nothing = np.zeros(shape)
+            split = np.full(shape, np.nan)
+            return PowerSplitResult("optimal", 0.0, np.zeros(shape[0]), split, nothing, nothing.copy(), 0.0, "")
+
+        if solver is None:
+            return _failed("solver_error", 0.0, "")  # no installed solver handles the exponential cone
+        problem = self.problem
+        pr = self._params
+        g = gamma[k_of, i_of]
+        c = np.maximum(g, 1.0)
+        served = self._served_nodes
+        pr["log_c"].value = np.log(c)
+        pr["inv_c"].value = 1.0 / c
+        pr["snr_over_c"].value = g / c
+        pr["harvest_rate"].value = eta * p_av[k_of, i_of] / e_ref
+        pr["info_cap"].value = data[served] * LN2 / bw
+        pr["room"].value = room[served] / e_ref
+        pr["min_energy"].value = min_energy[served] / e_ref
+        pr["w_info"].value = gw * bw / (LN2 * d_ref)
+        pr["w_energy"].value = 1.0 - gw
+        best_rate = float(np.max(pr["w_info"].value * np.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value))
+        pr["tie_break"].value = DWELL_TIE_BREAK * best_rate
+        for name, value in budgets.items():
+            pr[name].value = value
+
+        import cvxpy as cp
+
+        start = time.perf_counter()
+        try:
+            problem.solve(solver=solver, **self.solver_options)
+        except cp.error.SolverError:
+            return _failed("solver_error", time.perf_counter() - start, solver)
+        elapsed = time.perf_counter() - start
+        status = _status(problem.status)
+        if status not in ("optimal", "optimal_inaccurate"):
+            return _failed(status, elapsed, solver)
+        return self._result(status, float(self._vars["value"].value), bw, e_ref, elapsed, solver)
+
+    def _budgets(self, mission_time_s: Any, energy_budget_j: Any, dwell_power_w: Any) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.time_budget:
+            if mission_time_s is None:
+                raise ConfigError("this problem was built with a time budget: give mission_time_s", "mission_time_s")
+            out["time_budget"] = _scalar("mission_time_s", mission_time_s)
+        elif mission_time_s is not None:
+            raise ConfigError(
+                "this problem was built without a time budget: rebuild it to use mission_time_s", "mission_time_s"
+            )
+        if self.energy_budget:
+            if energy_budget_j is None:
+                raise ConfigError(
+                    "this problem was built with an energy budget: give energy_budget_j", "energy_budget_j"
+                )
+            out["energy_budget"] = _scalar("energy_budget_j", energy_budget_j)
+            if dwell_power_w is None:
+                raise ConfigError("an energy budget needs dwell_power_w (AUV power while serving, W)", "dwell_power_w")
+            power = _array("dwell_power_w", dwell_power_w)
+            if power.ndim == 0:
+                power = np.full(self.n_hover, float(power))
+            elif power.shape != (self.n_hover,):
+                raise ConfigError(
+                    f"dwell_power_w has shape {power.shape}, expected a scalar or ({self.n_hover},)", "dwell_power_w"
+                )
+            if np.any(power <= 0):
+                raise ConfigError("dwell_power_w must be > 0: a free dwell leaves the dwell unbounded", "dwell_power_w")
+            out["dwell_power"] = power
+        elif energy_budget_j is not None:
+            raise ConfigError(
+                "this problem was built without an energy budget: rebuild it to use energy_budget_j", "energy_budget_j"
+            )
+        return out
+
+    def _result(
+        self, status: str, objective: float, bw: float, e_ref: float, elapsed: float, solver: str
+    ) -> PowerSplitResult:
+        k_of, i_of = self._hover_of_pair, self._node_of_pair
+        shape = self.coverage_mask.shape
+        v = self._vars
+        dwell = np.maximum(np.asarray(v["dwell"].value, dtype=float), 0.0)
+        t_pair = dwell[k_of]
+        beta = np.clip(np.asarray(v["beta"].value, dtype=float), 0.0, t_pair)
+        positive = t_pair > ZERO_DWELL_FRACTION * max(float(dwell.max()), np.finfo(float).tiny)
+        split = np.full(shape, np.nan)
+        split[k_of[positive], i_of[positive]] = np.clip(beta[positive] / t_pair[positive], 0.0, 1.0)
+        bits = np.zeros(shape)
+        bits[k_of, i_of] = np.maximum(np.asarray(v["info"].value, dtype=float), 0.0) * bw / LN2
+        energy = np.zeros(shape)
+        energy[k_of, i_of] = np.maximum(np.asarray(v["energy"].value, dtype=float), 0.0) * e_ref
+        return PowerSplitResult(status, objective, dwell, split, bits, energy, elapsed, solver)
+
+
+def optimise_dwell_and_split(
+    snr_linear: ArrayLike,
+    available_power_w: ArrayLike,
+    data_bits: ArrayLike,
+    storage_room_j: ArrayLike,
+    *,
+    reward_weight: float,
+    bandwidth_hz: float,
+    efficiency: float,
+    mission_time_s: float | None = None,
+    energy_budget_j: float | None = None,
+    dwell_power_w: float | ArrayLike | None = None,
+    min_energy_j: ArrayLike | None = None,
+    data_ref_bits: float = 1.0,
+    energy_ref_j: float = 1.0,
+    solver: str | None = None,
+    solver_options: Mapping[str, Any] | None = None,
+) -> PowerSplitResult:
+    """Optimal dwell times and split ratios for K hover points and N nodes (build and solve once).
+
+    Arguments:
+        snr_linear: (K, N) link SNR before splitting, linear; > 0 where covered.
+        available_power_w: (K, N) available power at the node, W; 0 means not covered.
+        data_bits: (N,) data each node still has to deliver, bit.
+        storage_room_j: (N,) energy each node can still store, J.
+        reward_weight: Gamma in [0, 1].
+        bandwidth_hz: B > 0.
+        efficiency: harvester efficiency eta in [0, 1] (linear model).
+        mission_time_s: total dwell time allowed, s (a budget: sum_k t_k <= it).
+        energy_budget_j: AUV energy allowed for dwelling, J (sum_k dwell_power_w t_k <= it).
+        dwell_power_w: AUV power while hovering and serving, W, scalar or (K,); needed with
+            ``energy_budget_j``.
+        min_energy_j: (N,) minimum energy each node must receive, J (default none).
+        data_ref_bits, energy_ref_j: the reward's references D_ref and E_ref.
+        solver: a cvxpy solver name (default Clarabel, else SCS).
+        solver_options: keyword arguments passed to the solver.
+
+    At least one budget is required. Bad input raises :class:`~swiptopt.errors.ConfigError`
+    naming the argument; an infeasible or failed solve returns a result with that status.
+    """
+    gamma = _array("snr_linear", snr_linear)
+    if gamma.ndim != 2:
+        raise ConfigError(f"snr_linear must be (n_hover, n_nodes), got shape {gamma.shape}", "snr_linear")
+    p_av = _array("available_power_w", available_power_w, gamma.shape)
+    if mission_time_s is None and energy_budget_j is None:
+        raise ConfigError("give a budget: mission_time_s and/or energy_budget_j", "mission_time_s")
+    problem = DwellSplitProblem(
+        p_av > 0, time_budget=mission_time_s is not None, energy_budget=energy_budget_j is not None,
+        solver=solver,
+        solver_options=solver_options,
+    )
+    return problem.solve(
+        snr_linear=gamma,
+        available_power_w=p_av,
+        data_bits=data_bits,
+        storage_room_j=storage_room_j,
+        reward_weight=reward_weight,
+        bandwidth_hz=bandwidth_hz,
+        efficiency=efficiency,
+        mission_time_s=mission_time_s,
+        energy_budget_j=energy_budget_j,
+        dwell_power_w=dwell_power_w,
+        min_energy_j=min_energy_j,
+        data_ref_bits=data_ref_bits,
+        energy_ref_j=energy_ref_j,
+    )
+
+
+# ------------------------------------------------------------------------ from a scenario
+
+
+@dataclass(frozen=True, eq=False)
+class DwellSplitInputs:
+    """The program's inputs for a scenario and hover cells (:func:`from_scenario`).
+
+    ``optimise_dwell_and_split(**inputs.as_kwargs())`` solves it;
+    ``DwellSplitProblem(inputs.coverage_mask, ...)`` builds it for repeated solves.
+    """
+
+    hover_cells: np.ndarray
+    """(K,) flat cell indices of the hover points."""
+    snr_linear: np.ndarray
+    """(K, N) mean link SNR, linear; 0 where not covered."""
+    available_power_w: np.ndarray
+    """(K, N) available power, W; 0 where not covered."""
+    data_bits: np.ndarray
+    """(N,) data still to deliver, bit."""
+    storage_room_j: np.ndarray
+    """(N,) storable energy, J."""
+    mission_time_s: float
+    energy_budget_j: float | None
+    dwell_power_w: float
+    """AUV power while hovering and serving: hotel + station keeping + projector, W."""
+    reward_weight: float
+    bandwidth_hz: float
+    efficiency: float
+    data_ref_bits: float
+    energy_ref_j: float
+
+    @property
+    def coverage_mask(self) -> np.ndarray:
+        """(K, N) bool, the covered pairs."""
+        return self.available_power_w > 0
+
+    def as_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`optimise_dwell_and_split` (without ``solver``)."""
+        return {
+            "snr_linear": self.snr_linear,
+            "available_power_w": self.available_power_w,
+            "data_bits": self.data_bits,
+            "storage_room_j": self.storage_room_j,
+            "reward_weight": self.reward_weight,
+            "bandwidth_hz": self.bandwidth_hz,
+            "efficiency": self.efficiency,
+            "mission_time_s": self.mission_time_s,
+            "energy_budget_j": self.energy_budget_j,
+            "dwell_power_w": self.dwell_power_w if self.energy_budget_j is not None else None,
+            "data_ref_bits": self.data_ref_bits,
+            "energy_ref_j": self.energy_ref_j,
+        }
+
+
+def from_scenario(
+    scenario: Scenario,
+    hover_cells: Sequence[int] | ArrayLike,
+    *,
+    data_bits: ArrayLike | None = None,
+    stored_energy_j: ArrayLike | None = None,
+    mission_time_s: float | None = None,
+    energy_budget_j: float | None = None,
+) -> DwellSplitInputs:
+    """The program's inputs for hovering at ``hover_cells`` in ``scenario`` (linear harvester).
+
+    SNR and available power of each pair come from the scenario's mean (unfaded) link
+    (:func:`swiptopt.link.link_budget`) at the slant distance, for the pairs that
+    :func:`swiptopt.coverage.covered_nodes` covers; fading, link failures and the energy
+    gate are not modelled. Data and storage room come from the layout, or from
+    ``data_bits`` (N,) still to deliver and ``stored_energy_j`` (N,) already stored when
+    re-planning mid-episode. The references are :func:`swiptopt.link.reward_references`;
+    the time budget defaults to the whole episode, ``episode_steps * step_duration_s``
+    (travel between hover points is not subtracted: pass ``mission_time_s`` to do so). Dwell
+    times come out continuous; the simulator serves in whole steps of ``step_duration_s``.
+    """
+    if scenario.harvester != "linear":
+        raise ConfigError(
+            f"the convex program models the linear harvester, the scenario uses {scenario.harvester!r}", "harvester"
+        )
+    cells = np.asarray(hover_cells)
+    if cells.ndim != 1 or cells.size == 0 or not np.issubdtype(cells.dtype, np.integer):
+        raise ConfigError(
+            f"hover_cells must be a non-empty list of flat cell indices, got {hover_cells!r}", "hover_cells"
+        )
+    if np.any((cells < 0) | (cells >= scenario.n_cells)):
+        raise ConfigError(f"hover_cells must lie in 0..{scenario.n_cells - 1}", "hover_cells")
+    if np.any(scenario.blocked_cells[cells]):
+        raise ConfigError("a hover cell lies inside an obstacle or below the seabed", "hover_cells")
+
+    layout = scenario.layout
+    n = scenario.n_nodes
+    auv_m = scenario.cell_centers_m[cells]
+    covered = covered_nodes(scenario, auv_m)
+    budget = link_budget(scenario, slant_distances_m(auv_m, layout.positions_m))
+    snr = np.where(covered, 10.0 ** (budget.snr_db / 10.0), 0.0)
+    p_av = np.where(covered, budget.available_power_w, 0.0)
+    data = layout.data_bits.copy() if data_bits is None else _array("data_bits", data_bits, (n,))
+    stored = layout.initial_energy_j if stored_energy_j is None else _array("stored_energy_j", stored_energy_j, (n,))
+    room = np.maximum(layout.capacity_j - stored, 0.0)
+    refs = reward_references(scenario)
+    power = auv_power(scenario)
+    mission = scenario.episode_steps * scenario.step_duration_s if mission_time_s is None else mission_time_s
+    return DwellSplitInputs(
+        hover_cells=cells.astype(np.int64),
+        snr_linear=snr,
+        available_power_w=p_av,
+        data_bits=data,
+        storage_room_j=room,
+        mission_time_s=_scalar("mission_time_s", mission),
+        energy_budget_j=None if energy_budget_j is None else _scalar("energy_budget_j", energy_budget_j),
+        dwell_power_w=power.hotel_w + scenario.station_keeping_power_w + power.projector_w,
+        reward_weight=scenario.reward_weight,
+        bandwidth_hz=scenario.bandwidth_hz,
+        efficiency=scenario.harvest_efficiency,
+        data_ref_bits=refs.data_ref_bits,
+        energy_ref_j=refs.energy_ref_j,
+    )
