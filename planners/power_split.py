@@ -53,6 +53,8 @@ stays light.
 
 from __future__ import annotations
 
+import logging
+import warnings
 import math
 import time
 from dataclasses import dataclass
@@ -66,7 +68,7 @@ from swiptopt.errors import ConfigError
 from swiptopt.link import auv_power, link_budget, reward_references
 
 if TYPE_CHECKING:
-    import cvxpy as cp
+    cp = _cvxpy()
 
     from swiptopt.scenario import Scenario
 
@@ -90,6 +92,28 @@ STATUSES = ("optimal", "optimal_inaccurate", "infeasible", "unbounded", "solver_
 
 # ------------------------------------------------------------------------ validation
 
+
+
+class _HighsImportNoise(logging.Filter):
+    """Drops cvxpy's log record about failing to import its HIGHS interface.
+
+    When OR-Tools was loaded first in the process, its bundled HiGHS library shadows the one
+    highspy needs, and cvxpy logs an import error for HIGHS (a solver not used here) every
+    time it checks which solvers are installed. Only that record is dropped.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "importing solver HIGHS" not in record.getMessage()
+
+
+def _cvxpy():  # type: ignore[no-untyped-def]
+    """Import cvxpy, with :class:`_HighsImportNoise` on its logger."""
+    logger = logging.getLogger("__cvxpy__")
+    if not any(isinstance(f, _HighsImportNoise) for f in logger.filters):
+        logger.addFilter(_HighsImportNoise())
+    import cvxpy
+
+    return cvxpy
 
 def _scalar(name: str, value: Any, *, lo: float = 0.0, hi: float = math.inf, lo_open: bool = False) -> float:
     """A finite number in [lo, hi] (or (lo, hi] with ``lo_open``), else ConfigError naming it."""
@@ -228,14 +252,13 @@ def _failed(status: str, solve_time_s: float, solver: str) -> PowerSplitResult:
 
 def default_solver() -> str | None:
     """The first of :data:`PREFERRED_SOLVERS` that cvxpy has installed (``None`` if neither)."""
-    import cvxpy as cp
-
+    cp = _cvxpy()
     installed = set(cp.installed_solvers())
     return next((s for s in PREFERRED_SOLVERS if s in installed), None)
 
 
 def _status(cvxpy_status: str) -> str:
-    import cvxpy as cp
+    cp = _cvxpy()
 
     if cvxpy_status == cp.OPTIMAL:
         return "optimal"
@@ -322,7 +345,7 @@ class DwellSplitProblem:
         return self._problem  # type: ignore[return-value]
 
     def _build(self) -> None:
-        import cvxpy as cp
+        cp = _cvxpy()
         import scipy.sparse as sp
 
         n_pairs, n_served = self.n_pairs, self._served_nodes.size
@@ -444,11 +467,14 @@ class DwellSplitProblem:
         for name, value in budgets.items():
             pr[name].value = value
 
-        import cvxpy as cp
+        cp = _cvxpy()
 
         start = time.perf_counter()
         try:
-            problem.solve(solver=solver, **self.solver_options)
+            with warnings.catch_warnings():
+                # an inaccurate solution is reported by the status "optimal_inaccurate"
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
+                problem.solve(solver=solver, **self.solver_options)
         except cp.error.SolverError:
             return _failed("solver_error", time.perf_counter() - start, solver)
         elapsed = time.perf_counter() - start

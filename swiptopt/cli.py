@@ -52,6 +52,163 @@ def scenario_show(spec: str) -> None:
         console.print(table)
 
 
+# ------------------------------------------------------------------ benchmark
+
+_store_option = click.option(
+    "--store", "store_path", type=click.Path(dir_okay=False), default=None,
+    help="SQLite results file (default: results/swiptopt.sqlite).",
+)
+_run_options = [
+    click.option("--quick", is_flag=True, help="Shrink the experiment to a smoke test."),
+    _store_option,
+    click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores)."),
+    click.option("--scheduler", default=None, help="Dask scheduler address, or local:N for a local cluster."),
+    click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal",
+                 help="How to print the table."),
+    click.option("--output", type=click.Path(dir_okay=False), default=None, help="Also write the table to this file."),
+]
+
+
+def _with_run_options(fn):  # type: ignore[no-untyped-def]
+    for option in reversed(_run_options):
+        fn = option(fn)
+    return fn
+
+
+def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from swiptopt.runner import execute
+    from swiptopt.store import DEFAULT_STORE, ResultStore
+
+    if quick:
+        experiment = experiment.quick()
+    console = Console(stderr=True)
+    with ResultStore(store_path or DEFAULT_STORE) as store:
+        with Progress(
+            TextColumn(f"[bold]{experiment.name}[/]"), BarColumn(), MofNCompleteColumn(),
+            TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
+        ) as progress:
+            bar = progress.add_task(experiment.name, total=None)
+
+            def update(done: int, todo: int) -> None:
+                progress.update(bar, completed=done, total=todo)
+
+            report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update)
+        console.print(
+            f"{report.total} tasks: {report.cached} already stored, {report.ran} run in {report.seconds:.1f} s "
+            f"-> {store.path}"
+        )
+        _print_table(experiment, store, fmt, output)
+
+
+def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    from rich.console import Console
+
+    from swiptopt import tables
+
+    rows, missing = tables.aggregate(experiment, store)
+    title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({missing} tasks missing)" if missing else "")
+    if fmt == "terminal":
+        Console(width=max(160, Console().width)).print(tables.to_rich(rows, title))
+        text = tables.to_markdown(rows)
+    else:
+        text = tables.render(rows, fmt)
+        click.echo(text, nl=False)
+    if output:
+        from pathlib import Path
+
+        Path(output).write_text(text if fmt != "terminal" else tables.to_markdown(rows), encoding="utf-8")
+
+
+@cli.command()
+@_with_run_options
+def compare(quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    """Every algorithm on the standard suite, as one table (the main job)."""
+    from swiptopt.experiment import builtin_experiments
+
+    _run_and_report(builtin_experiments()["compare"], quick, store_path, workers, scheduler, fmt, output)
+
+
+@cli.command()
+@click.argument("spec", metavar="NAME|FILE.toml")
+@_with_run_options
+def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    """Run a built-in experiment or a TOML experiment file and print its table."""
+    from swiptopt.experiment import load_experiment
+
+    _run_and_report(load_experiment(spec), quick, store_path, workers, scheduler, fmt, output)
+
+
+@cli.command()
+@click.argument("what", type=click.Choice(["paper"]))
+@click.option("--quick", is_flag=True, help="Shrink every experiment to a smoke test.")
+@_store_option
+@click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores).")
+@click.option("--scheduler", default=None, help="Dask scheduler address, or local:N.")
+@click.option("--outdir", type=click.Path(file_okay=False), default="figures", help="Where figures and data go.")
+def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # type: ignore[no-untyped-def]
+    """Run every experiment of the paper's figures and write the figures and their data."""
+    from rich.console import Console
+
+    from swiptopt import plots
+    from swiptopt.experiment import builtin_experiments
+    from swiptopt.runner import execute
+    from swiptopt.store import DEFAULT_STORE, ResultStore
+
+    console = Console(stderr=True)
+    written = plots.coverage_figure(outdir, quick=quick)
+    console.print(f"coverage probability -> {', '.join(map(str, written))}")
+    with ResultStore(store_path or DEFAULT_STORE) as store:
+        for name, experiment in builtin_experiments().items():
+            if not experiment.figure:
+                continue
+            if quick:
+                experiment = experiment.quick()
+            report = execute(experiment, store, workers=workers, scheduler=scheduler)
+            paths = plots.experiment_figure(experiment, store, outdir)
+            console.print(f"{name}: {report.ran} run, {report.cached} stored -> {', '.join(map(str, paths))}")
+
+
+@cli.command()
+@click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
+@click.option("--experiment", "name", default=None, help="Only this experiment (default: every one in the store).")
+@click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal")
+@click.option("--output", type=click.Path(dir_okay=False), default=None)
+def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    """Print the tables of the experiments recorded in a results store."""
+    from swiptopt.experiment import Experiment
+    from swiptopt.store import ResultStore
+
+    with ResultStore(store_path, create=False) as store:
+        runs = [r for r in store.runs() if name is None or r["experiment"] == name]
+        if not runs:
+            raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}", "experiment")
+        for r in runs:
+            _print_table(Experiment(**r["config"]), store, fmt, output)
+
+
+@cli.command()
+@click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
+@click.option("--outdir", type=click.Path(file_okay=False), default="figures")
+def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
+    """Draw the figure of every experiment in a results store that defines one."""
+    from swiptopt import plots
+    from swiptopt.experiment import Experiment
+    from swiptopt.store import ResultStore
+
+    with ResultStore(store_path, create=False) as store:
+        drawn = []
+        for r in store.runs():
+            experiment = Experiment(**r["config"])
+            if experiment.figure:
+                drawn += plots.experiment_figure(experiment, store, outdir)
+    if not drawn:
+        raise ConfigError(f"no experiment with a [figure] in {store_path}", "figure")
+    click.echo("\n".join(map(str, drawn)))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
     try:

@@ -167,8 +167,11 @@ def build_tables(scenario: Scenario) -> Tables:
     params[P_GATE_J] = scenario.energy_gate_j
     params[P_BATTERY_J] = scenario.battery_j
     params[P_STEPS] = scenario.episode_steps
-    params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits.sum()
-    params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j).sum()
+    # targets are fractions of what can be collected at all: nodes no cell covers never count
+    coverable = np.zeros(scenario.n_nodes, dtype=bool)
+    coverable[nodes] = True
+    params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits[coverable].sum()
+    params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j)[coverable].sum()
     params[P_DRAW_UNIFORMS] = float(np.any(layout.failure_prob > 0))
     params[P_NORMAL_ROWS] = {"none": 0, "shadowing": 1, "rician": 2}[scenario.channel]
 

@@ -1,0 +1,301 @@
+"""Experiments: scenarios, a sweep, algorithms, layouts, seeds and episodes, as TOML.
+
+An experiment expands into tasks, one per (scenario, algorithm, seed); a task's key is a
+hash of its fully resolved configuration (every scenario field, every algorithm setting,
+the seed, the episode count), so the results store recognises finished work whatever file
+or command produced it. Experiments are validated like scenarios: unknown keys, wrong
+types and out-of-range values are errors that name the key.
+
+File format::
+
+    name = "my-sweep"
+    layouts = 5          # layout seeds 0..4 per sweep point
+    seeds = 1            # training/evaluation seeds per layout
+    episodes = 10        # greedy evaluation episodes per task
+
+    [scenario]           # a preset and Scenario overrides
+    preset = "paper"
+    n_nodes = 25
+
+    [sweep]              # optional: one or more Scenario fields and their values
+    n_nodes = [10, 20, 30]
+
+    [algorithms.q_learning]      # one table per algorithm, with its settings
+    train_episodes = 20000
+    [algorithms.greedy]
+
+    [figure]             # optional: what `swiptopt plot` draws
+    metric = "data_bits"
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from swiptopt.algorithms import ALGORITHMS, resolve_settings
+from swiptopt.errors import ConfigError
+from swiptopt.metrics import EPISODE_METRICS
+from swiptopt.scenario import Scenario, ScenarioError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: Evaluation seeds of a task start this far from its training seed.
+EVALUATION_OFFSET = 1_000_003
+
+ALL_ALGORITHMS = tuple(ALGORITHMS)
+TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure"}
+FIGURE_KEYS = {"metric", "x", "title", "ylabel", "xlabel"}
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work: train (if RL) and evaluate one algorithm on one scenario and seed."""
+
+    experiment: str
+    scenario: dict[str, Any]
+    algorithm: str
+    settings: dict[str, Any]
+    seed: int
+    episodes: int
+    point: dict[str, Any]
+    """The sweep values of this task (empty without a sweep)."""
+
+    @property
+    def key(self) -> str:
+        """Hash of everything that determines the result (not the experiment's name)."""
+        payload = json.dumps(
+            {"scenario": self.scenario, "algorithm": self.algorithm, "settings": self.settings,
+             "seed": self.seed, "episodes": self.episodes},
+            sort_keys=True,
+            separators=(",", ":"),
+        )
+        return hashlib.sha256(payload.encode()).hexdigest()
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated experiment; :meth:`tasks` expands it."""
+
+    name: str
+    scenario: dict[str, Any]
+    algorithms: dict[str, dict[str, Any]]
+    sweep: dict[str, list[Any]] = field(default_factory=dict)
+    layouts: int = 5
+    seeds: int = 1
+    episodes: int = 10
+    figure: dict[str, Any] = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        for key, low in (("layouts", 1), ("seeds", 1), ("episodes", 1)):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 100_000:
+                raise ConfigError(f"{key} = {value!r} is out of range: must be an integer in [{low}, 100000]", key)
+        if not self.algorithms:
+            raise ConfigError("an experiment needs at least one algorithm in [algorithms]", "algorithms")
+        for name, settings in self.algorithms.items():
+            if not isinstance(settings, dict):
+                raise ConfigError(f"algorithms.{name} must be a table of settings", name)
+            resolve_settings(name, settings)
+        names = {f.name for f in dataclasses.fields(Scenario)}
+        for key, values in self.sweep.items():
+            if key not in names or key == "layout_seed":
+                raise ConfigError(f"sweep key {key!r} is not a scenario field (layouts are set by 'layouts')", key)
+            if not isinstance(values, list) or not values:
+                raise ConfigError(f"sweep.{key} must be a non-empty list of values", key)
+        unknown = sorted(set(self.figure) - FIGURE_KEYS)
+        if unknown:
+            raise ConfigError(f"unknown figure key {unknown[0]!r}; known: {', '.join(sorted(FIGURE_KEYS))}", unknown[0])
+        metric = self.figure.get("metric")
+        if metric is not None and metric not in EPISODE_METRICS:
+            raise ConfigError(f"figure.metric = {metric!r} is not a metric: choose one of {', '.join(EPISODE_METRICS)}", "metric")
+        # validate every scenario of the sweep now, so a bad value fails before any work
+        for point in self.points():
+            self.scenario_for(point, 0)
+
+    # ------------------------------------------------------------ construction
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Experiment:
+        unknown = sorted(set(data) - TOP_KEYS)
+        if unknown:
+            raise ConfigError(f"unknown experiment key {unknown[0]!r}; known: {', '.join(sorted(TOP_KEYS))}", unknown[0])
+        for key in ("scenario", "sweep", "algorithms", "figure"):
+            if key in data and not isinstance(data[key], dict):
+                raise ConfigError(f"[{key}] must be a table", key)
+        name = data.get("name", "experiment")
+        if not isinstance(name, str) or not name:
+            raise ConfigError(f"name = {name!r} must be a non-empty string", "name")
+        return cls(
+            name=name,
+            scenario=dict(data.get("scenario", {"preset": "paper"})),
+            algorithms={k: dict(v) if isinstance(v, dict) else v for k, v in data.get("algorithms", {}).items()},
+            sweep=dict(data.get("sweep", {})),
+            layouts=data.get("layouts", 5),
+            seeds=data.get("seeds", 1),
+            episodes=data.get("episodes", 10),
+            figure=dict(data.get("figure", {})),
+            description=str(data.get("description", "")),
+        )
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Experiment:
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot read experiment file {str(path)!r}: {exc.strerror}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+        try:
+            return cls.from_dict(data)
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}", exc.field) from None
+
+    def quick(self) -> Experiment:
+        """The same experiment shrunk to a smoke test: 2 layouts, 1 seed, 2 episodes, the
+        first two sweep values, short training and short solver limits."""
+        algorithms = {}
+        for name, settings in self.algorithms.items():
+            s = dict(settings)
+            resolved = resolve_settings(name, s)
+            if resolved.get("train_episodes"):
+                s["train_episodes"] = min(resolved["train_episodes"], 2000)
+            if "tsp_time_limit_s" in resolved:
+                s["tsp_time_limit_s"] = min(resolved["tsp_time_limit_s"], 0.2)
+                s["ompl_time_limit_s"] = min(resolved["ompl_time_limit_s"], 0.05)
+            algorithms[name] = s
+        return dataclasses.replace(
+            self,
+            name=self.name,
+            layouts=min(self.layouts, 2),
+            seeds=1,
+            episodes=min(self.episodes, 2),
+            sweep={k: v[:2] for k, v in self.sweep.items()},
+            algorithms=algorithms,
+        )
+
+    # ------------------------------------------------------------ expansion
+
+    def points(self) -> list[dict[str, Any]]:
+        """Every combination of the sweep's values (one empty point without a sweep)."""
+        keys = list(self.sweep)
+        return [dict(zip(keys, values)) for values in itertools.product(*(self.sweep[k] for k in keys))]
+
+    def scenario_for(self, point: dict[str, Any], layout: int) -> Scenario:
+        values = {**self.scenario, **point, "layout_seed": layout}
+        try:
+            return Scenario.from_dict(values)
+        except ScenarioError as exc:
+            where = f" at sweep point {point}" if point else ""
+            raise ConfigError(f"scenario{where}: {exc}", exc.field) from None
+
+    def tasks(self) -> list[Task]:
+        """All tasks: sweep point x layout x algorithm x seed."""
+        out = []
+        for point in self.points():
+            for layout in range(self.layouts):
+                scenario = self.scenario_for(point, layout).to_dict()
+                for name, settings in self.algorithms.items():
+                    resolved = resolve_settings(name, settings)
+                    for s in range(self.seeds):
+                        out.append(Task(self.name, scenario, name, resolved, 1000 * layout + s, self.episodes, point))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+# ------------------------------------------------------------------- built-ins
+
+_PAPER_ALGORITHMS = {"q_learning": {}, "sarsa": {}, "random": {}}
+_ALL = {name: {} for name in ALL_ALGORITHMS}
+_NODE_SWEEP = {"n_nodes": [10, 20, 30, 40, 50]}
+
+
+def _builtin(name: str, description: str, **fields: Any) -> Experiment:
+    return Experiment(name=name, description=description, **fields)
+
+
+def builtin_experiments() -> dict[str, Experiment]:
+    """The named experiments: ``compare`` and one per figure of the paper."""
+    paper = {"preset": "paper"}
+    return {
+        e.name: e
+        for e in (
+            _builtin(
+                "compare",
+                "every algorithm on the standard suite: the paper preset, 25 nodes",
+                scenario={**paper, "n_nodes": 25},
+                algorithms=_ALL,
+                layouts=6,
+                episodes=10,
+            ),
+            _builtin(
+                "fig-reward-vs-split",
+                "reward (return) against the power-splitting factor, 25 nodes",
+                scenario={**paper, "n_nodes": 25},
+                sweep={"split_ratio": [0.1, 0.3, 0.5, 0.7, 0.9]},
+                algorithms=_ALL,
+                layouts=20,
+                episodes=5,
+                figure={"metric": "return", "x": "split_ratio", "xlabel": "split ratio alpha"},
+            ),
+            _builtin(
+                "fig-throughput-vs-nodes",
+                "data collected against the number of nodes",
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                figure={"metric": "data_bits", "x": "n_nodes"},
+            ),
+            _builtin(
+                "fig-steps-to-data-target",
+                "steps to collect half of the collectable data, against the number of nodes",
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                figure={"metric": "steps_to_data_target", "x": "n_nodes"},
+            ),
+            _builtin(
+                "fig-efficiency-vs-nodes",
+                "energy efficiency against the number of nodes",
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                figure={"metric": "mobility_efficiency_bit_per_j", "x": "n_nodes"},
+            ),
+            _builtin(
+                "fig-harvested-vs-nodes",
+                "energy delivered to the nodes against the number of nodes",
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                figure={"metric": "energy_delivered_j", "x": "n_nodes"},
+            ),
+            _builtin(
+                "fig-steps-to-energy-target",
+                "steps to deliver half of the deliverable energy, against the number of nodes",
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                figure={"metric": "steps_to_energy_target", "x": "n_nodes"},
+            ),
+        )
+    }
+
+
+def load_experiment(spec: str) -> Experiment:
+    """A built-in experiment by name or a TOML file."""
+    builtins = builtin_experiments()
+    if spec in builtins:
+        return builtins[spec]
+    path = Path(spec)
+    if path.suffix.lower() == ".toml" or path.exists():
+        return Experiment.from_toml(path)
+    raise ConfigError(f"{spec!r} is neither a built-in experiment ({', '.join(builtins)}) nor a .toml file", "experiment")

@@ -1,0 +1,132 @@
+"""Figures (matplotlib, PNG and PDF sized for one column of a two-column paper) with the
+data behind each written beside it as CSV."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swiptopt.experiment import Experiment
+from swiptopt.store import ResultStore
+
+#: One column of a two-column paper, inches.
+COLUMN_WIDTH_IN = 3.5
+
+_UNITS = {
+    "return": ("return", 1.0),
+    "data_bits": ("data collected (kbit)", 1e-3),
+    "energy_delivered_j": ("energy delivered (mJ)", 1e3),
+    "energy_efficiency_bit_per_j": ("energy efficiency, all AUV energy (bit/J)", 1.0),
+    "mobility_efficiency_bit_per_j": ("energy efficiency, AUV motion (bit/J)", 1.0),
+    "steps_to_data_target": ("steps to 50 % of the data", 1.0),
+    "steps_to_energy_target": ("steps to 50 % of the energy", 1.0),
+    "nodes_served": ("nodes served", 1.0),
+}
+_X_LABELS = {"n_nodes": "number of nodes", "split_ratio": "power-splitting ratio alpha"}
+
+
+def _figure(height_in: float = 2.5):  # type: ignore[no-untyped-def]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(COLUMN_WIDTH_IN, height_in), dpi=100)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, outdir: Path, stem: str) -> list[Path]:  # type: ignore[no-untyped-def]
+    import matplotlib
+
+    with matplotlib.rc_context({"font.size": 8}):
+        fig.tight_layout()
+    outdir.mkdir(parents=True, exist_ok=True)
+    paths = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
+    fig.savefig(paths[0], dpi=200)
+    fig.savefig(paths[1])
+    return paths
+
+
+def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        writer.writerows(rows)
+    return path
+
+
+def experiment_figure(experiment: Experiment, store: ResultStore, outdir: str | Path) -> list[Path]:
+    """Metric against the sweep variable, one line per algorithm, 95 % CI error bars."""
+    import matplotlib
+
+    from swiptopt import tables
+
+    outdir = Path(outdir)
+    metric = experiment.figure.get("metric", "return")
+    x_key = experiment.figure.get("x") or next(iter(experiment.sweep), None)
+    if x_key is None:
+        raise ValueError(f"experiment {experiment.name!r} has no sweep to plot against")
+    rows, _ = tables.aggregate(experiment, store)
+    ylabel, scale = _UNITS.get(metric, (metric, 1.0))
+    data_rows = []
+    with matplotlib.rc_context({"font.size": 8}):
+        fig = _figure()
+        ax = fig.add_subplot(1, 1, 1)
+        for algorithm in experiment.algorithms:
+            mine = sorted((r for r in rows if r.algorithm == algorithm), key=lambda r: r.point[x_key])
+            if not mine:
+                continue
+            x = np.array([r.point[x_key] for r in mine], dtype=float)
+            s = [r.summaries[metric] for r in mine]
+            y = np.array([v.mean for v in s]) * scale
+            err = np.nan_to_num(np.array([v.ci95 for v in s]) * scale)
+            ax.errorbar(x, y, yerr=err, marker="o", ms=3, capsize=2, lw=1, label=mine[0].label)
+            data_rows += [[algorithm, r.point[x_key], v.mean, v.ci95, v.min, v.max, v.n, v.missing] for r, v in zip(mine, s)]
+        ax.set_xlabel(experiment.figure.get("xlabel", _X_LABELS.get(x_key, x_key)))
+        ax.set_ylabel(experiment.figure.get("ylabel", ylabel))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+        paths = _save(fig, outdir, experiment.name)
+    paths.append(_write_csv(outdir / f"{experiment.name}.csv",
+                            ["algorithm", x_key, metric + "_mean", "ci95", "min", "max", "n", "missing"], data_rows))
+    return paths
+
+
+def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
+    """The paper's coverage figure: P(at least one of n nodes covered) against the AUV's
+    start position along the area's centre line at the surface, analytic and simulated."""
+    import matplotlib
+
+    from swiptopt.coverage import analytic_coverage_probability, simulated_coverage_probability
+    from swiptopt.scenario import Scenario
+
+    outdir = Path(outdir)
+    scenario = Scenario.preset("paper")
+    xs = np.linspace(5.0, 95.0, 7 if quick else 19)
+    trials = 300 if quick else 3000
+    data_rows = []
+    with matplotlib.rc_context({"font.size": 8}):
+        fig = _figure()
+        ax = fig.add_subplot(1, 1, 1)
+        for i, n in enumerate((10, 25, 50)):
+            analytic, simulated = [], []
+            for x in xs:
+                position = (x, 50.0, 0.0)
+                a = analytic_coverage_probability(scenario, position, n, 1, rng=i)
+                s = simulated_coverage_probability(scenario, position, n, 1, trials=trials, rng=100 + i)
+                analytic.append(a)
+                simulated.append(s)
+                data_rows.append([n, x, a, s, trials])
+            line = ax.plot(xs, analytic, lw=1, label=f"n = {n} (analytic)")[0]
+            ax.plot(xs, simulated, "o", ms=3, color=line.get_color(), label=f"n = {n} (simulated)")
+        ax.set_xlabel("AUV start position x (m), surface, y = 50 m")
+        ax.set_ylabel("P(at least 1 node covered)")
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+        paths = _save(fig, outdir, "fig-coverage")
+    paths.append(_write_csv(outdir / "fig-coverage.csv", ["n_nodes", "x_m", "analytic", "simulated", "trials"], data_rows))
+    return paths

@@ -1,0 +1,166 @@
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+from swiptopt.cli import main
+from swiptopt.errors import ConfigError
+from swiptopt.experiment import Experiment, builtin_experiments, load_experiment
+from swiptopt.runner import execute
+from swiptopt.store import ResultStore
+from swiptopt import tables
+
+QUICK_TOML = """
+name = "smoke"
+layouts = 2
+episodes = 2
+
+[scenario]
+preset = "paper"
+n_nodes = 12
+
+[sweep]
+n_nodes = [8, 12]
+
+[algorithms.q_learning]
+train_episodes = 300
+[algorithms.random]
+[algorithms.greedy]
+
+[figure]
+metric = "data_bits"
+"""
+
+
+def write(tmp_path, text, name="exp.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def cli(*args, env_extra=None):
+    env = dict(os.environ, **(env_extra or {}))
+    return subprocess.run([sys.executable, "-m", "swiptopt.cli", *args], capture_output=True, text=True, env=env)
+
+
+def test_experiment_expansion_and_keys(tmp_path):
+    exp = Experiment.from_toml(write(tmp_path, QUICK_TOML))
+    tasks = exp.tasks()
+    assert len(tasks) == 2 * 2 * 3  # sweep points x layouts x algorithms
+    assert len({t.key for t in tasks}) == len(tasks)
+    again = Experiment.from_toml(write(tmp_path, QUICK_TOML.replace('"smoke"', '"renamed"'), "b.toml"))
+    assert [t.key for t in again.tasks()] == [t.key for t in tasks]  # the name is not part of the key
+    changed = Experiment.from_toml(write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 301"), "c.toml"))
+    assert [t.key for t in changed.tasks()] != [t.key for t in tasks]
+    # every figure experiment of the paper has at least 20 layouts per point
+    for name, e in builtin_experiments().items():
+        if e.figure:
+            assert e.layouts >= 20, name
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("name = 'x'\n[algorithms.q_learning\n", ["malformed TOML"]),
+        ("name = 'x'\n[algorithms.dqn]\n", ["unknown algorithm 'dqn'"]),
+        ("name = 'x'\nlayout = 3\n[algorithms.random]\n", ["unknown experiment key 'layout'"]),
+        ("name = 'x'\n[scenario]\nn_node = 3\n[algorithms.random]\n", ["n_node"]),
+        ("name = 'x'\n[scenario]\nsplit_ratio = 2.0\n[algorithms.random]\n", ["split_ratio", "2.0"]),
+        ("name = 'x'\nepisodes = 0\n[algorithms.random]\n", ["episodes"]),
+        ("name = 'x'\n[algorithms.q_learning]\nlearning_rate = 3\n", ["learning_rate"]),
+        ("name = 'x'\n[algorithms.greedy]\nspeed = 3\n", ["unknown setting 'speed'"]),
+        ("name = 'x'\n[sweep]\nn_nodes = [10, -1]\n[algorithms.random]\n", ["n_nodes", "-1"]),
+    ],
+)
+def test_bad_experiments_exit_2_with_one_line(tmp_path, text, words):
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError):
+        Experiment.from_toml(path)
+    result = cli("run", str(path), "--store", str(tmp_path / "s.sqlite"))
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr
+    for word in words:
+        assert word in lines[0]
+
+
+def test_unknown_experiment_name_and_missing_store(tmp_path):
+    assert cli("run", "no-such-experiment").returncode == 2
+    result = cli("table", str(tmp_path / "absent.sqlite"))
+    assert result.returncode == 2 and "no results store" in result.stderr
+
+
+def test_quick_sweep_end_to_end(tmp_path, capsys):
+    exp_path = write(tmp_path, QUICK_TOML)
+    store = tmp_path / "r.sqlite"
+    assert main(["run", str(exp_path), "--store", str(store), "--workers", "2", "--format", "csv"]) == 0
+    out = capsys.readouterr().out
+    assert "q_learning" in out and "greedy" in out and "data_bits" in out
+    with ResultStore(store) as s:
+        assert s.count() == 12
+        rows, missing = tables.aggregate(Experiment.from_toml(exp_path), s)
+        assert missing == 0 and len(rows) == 2 * 3
+        for r in rows:
+            assert r.summaries["data_bits"].n == 2
+            assert r.summaries["gap_to_bound"].max <= 1.0
+            assert r.summaries["return"].mean <= min(r.summaries["return"].max, 1e9)
+        assert s.runs()[0]["provenance"]["versions"]["numpy"]
+    # a rerun finds everything stored and runs nothing
+    assert main(["run", str(exp_path), "--store", str(store), "--format", "markdown"]) == 0
+    assert "| algorithm |" in capsys.readouterr().out.replace("| point | algorithm |", "| algorithm |")
+    with ResultStore(store) as s:
+        assert s.count() == 12
+    # table and plot read the store
+    assert main(["table", str(store), "--format", "latex"]) == 0
+    assert r"\begin{tabular}" in capsys.readouterr().out
+    assert main(["plot", str(store), "--outdir", str(tmp_path / "fig")]) == 0
+    assert (tmp_path / "fig" / "smoke.png").stat().st_size > 1000
+    assert (tmp_path / "fig" / "smoke.pdf").exists() and (tmp_path / "fig" / "smoke.csv").exists()
+
+
+def test_killed_run_resumes_without_duplicates(tmp_path):
+    exp_path = write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 200").replace("layouts = 2", "layouts = 4"))
+    store = tmp_path / "kill.sqlite"
+    expected = {t.key for t in Experiment.from_toml(exp_path).tasks()}
+    proc = subprocess.Popen([sys.executable, "-m", "swiptopt.cli", "run", str(exp_path), "--store", str(store), "--workers", "1"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 120
+    stored = 0
+    while time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+        if store.exists():
+            try:
+                with sqlite3.connect(store, timeout=1) as db:
+                    stored = db.execute("SELECT COUNT(*) FROM results").fetchone()[0]
+            except sqlite3.OperationalError:
+                continue
+            if stored >= 3:
+                break
+    assert proc.poll() is None, "the run finished before it could be killed"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    with ResultStore(store) as s:
+        partial = s.count()
+    assert 3 <= partial < len(expected)
+    assert main(["run", str(exp_path), "--store", str(store), "--format", "csv"]) == 0
+    with sqlite3.connect(store) as db:
+        keys = [k for (k,) in db.execute("SELECT key FROM results")]
+    assert len(keys) == len(set(keys)) == len(expected)
+    assert set(keys) == expected
+
+
+def test_dask_local_cluster_gives_the_same_table(tmp_path):
+    exp = Experiment.from_toml(write(tmp_path, QUICK_TOML)).quick()
+    with ResultStore(tmp_path / "local.sqlite") as a, ResultStore(tmp_path / "dask.sqlite") as b:
+        execute(exp, a, workers=1)
+        execute(exp, b, scheduler="local:2")
+        assert tables.to_csv(tables.aggregate(exp, a)[0]) == tables.to_csv(tables.aggregate(exp, b)[0])
+
+
+def test_builtin_lookup():
+    assert load_experiment("compare").name == "compare"
+    assert set(builtin_experiments()["compare"].algorithms) == {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy"}
