@@ -15,7 +15,7 @@ $(VENV)/.installed: pyproject.toml
 install: $(VENV)/.installed
 
 compare: $(VENV)/.installed
-	$(BIN)/swiptopt scenario show paper
+	$(BIN)/swiptopt compare
 
 test: $(VENV)/.installed
 	$(BIN)/python -m pytest -n 2 -q

@@ -71,9 +71,12 @@ def kmeans_hover_points(
     limit = coverable.size if max_k is None else min(max_k, coverable.size)
     if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= coverable.size):
         raise ConfigError(f"k = {k!r} must be an integer in [1, {coverable.size}] (the coverable nodes)", "k")
-    candidates = [int(k)] if k is not None else range(1, limit + 1)
+    # no K below this can fit: every group needs one footprint covering all of it
+    widest = int(covered[:, coverable].sum(axis=1).max())
+    lowest = min(limit, -(-coverable.size // widest))
+    candidates = [int(k)] if k is not None else range(lowest, limit + 1)
     for kk in candidates:
-        model = KMeans(n_clusters=kk, n_init=10, random_state=seed).fit(positions)
+        model = KMeans(n_clusters=kk, n_init=4, random_state=seed).fit(positions)
         cells = []
         fits = True
         for g in range(kk):
