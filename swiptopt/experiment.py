@@ -34,20 +34,16 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from swiptopt.algorithms import ALGORITHMS, resolve_settings
 from swiptopt.errors import ConfigError
+from swiptopt.tomlfile import read_toml
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.scenario import Scenario, ScenarioError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 #: Evaluation seeds of a task start this far from its training seed.
 EVALUATION_OFFSET = 1_000_003
@@ -153,15 +149,7 @@ class Experiment:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Experiment:
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ConfigError(f"cannot read experiment file {str(path)!r}: {exc.strerror}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+        data = read_toml(path, "experiment")
         try:
             return cls.from_dict(data)
         except ConfigError as exc:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -25,11 +24,8 @@ import numpy as np
 
 from swiptopt.acoustics import THORP_VALID_KHZ
 from swiptopt.errors import ConfigError
+from swiptopt.tomlfile import read_toml
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
 
 
 class ScenarioError(ConfigError):
@@ -364,15 +360,10 @@ class Scenario:
     @classmethod
     def from_toml(cls, path: str | Path) -> Scenario:
         """Read a scenario file: top-level field names, optional ``preset``, ``[[obstacles]]``."""
-        path = Path(path)
         try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ScenarioError(f"cannot read scenario file {str(path)!r}: {exc.strerror}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{path}: malformed TOML: {exc}") from None
+            data = read_toml(path, "scenario")
+        except ConfigError as exc:
+            raise ScenarioError(str(exc)) from None
         try:
             return cls.from_dict(data)
         except ScenarioError as exc:
