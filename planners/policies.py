@@ -23,6 +23,8 @@ from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
 
+TOUR_COSTS = ("auto", "euclidean", "grid", "ompl")
+
 # the move that undoes each move (used to walk a BFS tree grown from the target)
 _REVERSE = np.array([1, 0, 3, 2, 5, 4, 6])
 
@@ -122,8 +124,12 @@ def _scenario_of(env: Any) -> Scenario:
 class KMeansTspPlanner(_Executor):
     """k-means hover points -> TSP tour -> convex dwell times -> grid moves and hovers.
 
-    Tour costs are 3D distances between cell centres, or OMPL path lengths where the
-    scenario has obstacles (``use_ompl=None`` decides by that). The dwell time at each
+    ``tour_costs``: ``"euclidean"`` (3D distances between cell centres), ``"grid"``
+    (shortest obstacle-avoiding grid paths: the moves the AUV will make), ``"ompl"`` (OMPL
+    path lengths around the obstacles, :func:`planners.paths3d.plan_path_3d`), or ``"auto"``:
+    euclidean without obstacles, grid with them. OMPL's random generator is process-wide
+    (see :mod:`planners.paths3d`), so ``"ompl"`` costs are reproducible only in a fresh
+    process; the benchmark keeps the deterministic default. The dwell time at each
     stop comes from :func:`planners.power_split.optimise_dwell_and_split` under the time
     left after travel; the environment applies the scenario's own split ratio, so the
     program's per-node split ratios are advice the simulator does not take.
@@ -135,16 +141,18 @@ class KMeansTspPlanner(_Executor):
         k: int | None = None,
         tsp_method: str = "auto",
         tsp_time_limit_s: float = 1.0,
-        use_ompl: bool | None = None,
+        tour_costs: str = "auto",
         ompl_time_limit_s: float = 0.2,
         seed: int = 0,
         linger_steps: int = 2,
     ):
         super().__init__(linger_steps=linger_steps)
+        if tour_costs not in TOUR_COSTS:
+            raise ConfigError(f"tour_costs = {tour_costs!r} is not one of {', '.join(TOUR_COSTS)}", "tour_costs")
         self.k = k
         self.tsp_method = tsp_method
         self.tsp_time_limit_s = tsp_time_limit_s
-        self.use_ompl = use_ompl
+        self.tour_costs = tour_costs
         self.ompl_time_limit_s = ompl_time_limit_s
         self.seed = seed
 
@@ -160,9 +168,15 @@ class KMeansTspPlanner(_Executor):
         start = tables.start_cell
         cells = [start] + [int(c) for c in hover.cells]
         centres = scenario.cell_centers_m[cells]
-        use_ompl = bool(scenario.obstacles or scenario.seabed_height_m) if self.use_ompl is None else self.use_ompl
-        if use_ompl:
+        kind = self.tour_costs
+        if kind == "auto":
+            kind = "grid" if (scenario.obstacles or scenario.seabed_height_m) else "euclidean"
+        if kind == "ompl":
             costs = self._ompl_costs(scenario, cells)
+        elif kind == "grid":
+            from planners.grid import distance_matrix
+
+            costs = distance_matrix(tables.next_cell, cells) * scenario.cell_size_m
         else:
             costs = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=-1)
         tour = solve_tsp(costs, start=0, closed=False, time_limit_s=self.tsp_time_limit_s, method=self.tsp_method)
@@ -212,7 +226,8 @@ class KMeansTspPlanner(_Executor):
             stops,
             status=f"tsp {tour.status}, dwell {result.status}",
             details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": sum(moves),
-                     "power_split": result, "hover_index": index, "auv_power": auv_power(scenario)},
+                     "tour_costs": kind, "power_split": result, "hover_index": index,
+                     "auv_power": auv_power(scenario)},
         )
 
     def _ompl_costs(self, scenario: Scenario, cells: list[int]) -> np.ndarray:
@@ -226,7 +241,7 @@ class KMeansTspPlanner(_Executor):
         costs = grid.copy()
         for i in range(len(cells)):
             for j in range(i + 1, len(cells)):
-                result = plan_path_3d(centres[i], centres[j], scenario, time_limit_s=self.ompl_time_limit_s, seed=self.seed)
+                result = plan_path_3d(centres[i], centres[j], scenario, time_limit_s=self.ompl_time_limit_s)
                 if result.exact:
                     costs[i, j] = costs[j, i] = result.length_m
         return costs

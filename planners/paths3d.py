@@ -1,0 +1,690 @@
+"""3D paths for the AUV: OMPL geometric planning around boxes, spheres and the seabed (SPEC 6).
+
+The idiom stays visible: a 3D ``RealVectorStateSpace`` over the volume, a plain Python
+validity checker, ``SimpleSetup`` -> objective -> planner -> ``solve(time limit)`` ->
+simplify, and a :class:`PathResult` that reports what OMPL actually delivered (exact,
+approximate or nothing) instead of assuming success.
+
+Motion checking. OMPL checks a straight motion by testing states spaced at most ``g``
+apart along it (the space's longest valid segment). On its own that can cut a corner or
+jump a thin wall between two tested states. Here the validity checker tests the
+obstacles *grown by g/2* (plus any requested clearance): the distance to an obstacle is
+1-Lipschitz along a segment and every point of a checked motion is within g/2 of a
+tested state, so every point of an accepted motion lies outside the true obstacles, however
+thin they are. ``g`` is the smaller of 0.5 % of the volume's diagonal and a quarter of the
+smallest obstacle dimension (box edge or sphere diameter), so the growth stays below 1/8
+of any obstacle; it shrinks further when the start or goal sits closer to an obstacle
+than g/2. The cost is a slightly conservative path (and gaps narrower than g close).
+
+Seeding. OMPL draws from one process-wide seed generator; ``ompl.util.RNG.setSeed`` is
+meant to be called once, before the first planner exists. See :func:`plan_path_3d`.
+
+``ompl`` is imported inside the functions, so ``import planners.paths3d`` stays light.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from swiptopt import auv
+from swiptopt.errors import ConfigError
+from swiptopt.scenario import Box, Scenario, Sphere
+
+#: Planner names this module knows, in the order they are listed; which of them exist
+#: depends on the installed OMPL (see :func:`available_planners`).
+PLANNERS: tuple[str, ...] = (
+    "AORRTC",
+    "RRTstar",
+    "InformedRRTstar",
+    "SORRTstar",
+    "BITstar",
+    "FMT",
+    "BFMT",
+    "PRMstar",
+    "PRM",
+    "RRTConnect",
+    "RRT",
+    "KPIECE1",
+    "BKPIECE1",
+    "LBKPIECE1",
+)
+OBJECTIVES: tuple[str, ...] = ("length", "energy")
+#: The planner used when ``planner=None``. AORRTC converges fastest on path length but
+#: optimises only length; for energy, Informed RRT* (with the objective's admissible
+#: heuristic) did as well as RRT*/SORRT* and better than BIT* at 0.5-1 s.
+DEFAULT_PLANNER: dict[str, str] = {"length": "AORRTC", "energy": "InformedRRTstar"}
+#: AORRTC measures its best cost with ``path->length()`` whatever the objective.
+LENGTH_ONLY_PLANNERS = frozenset({"AORRTC"})
+#: With a Python objective these never return (seen with ompl 2.0.1). PRM grows its
+#: roadmap and searches it for a solution in two threads; the solution thread calls the
+#: objective, needing the GIL that the thread running ``solve`` holds while it waits.
+NO_PYTHON_OBJECTIVE_PLANNERS = frozenset({"PRM", "PRMstar"})
+
+CHECK_SPACING_FRACTION = 0.005
+"""Motion-check spacing as a fraction of the volume's diagonal (OMPL's default is 0.01)."""
+SMALLEST_OBSTACLE_SHARE = 0.25
+"""The spacing is at most this share of the smallest obstacle dimension."""
+MIN_SPACING_SHARE = 0.01
+"""Spacing floor, as a share of the default spacing; a start or goal nearer an obstacle
+than half of it is refused."""
+SIMPLIFY_TIME_SHARE = 0.5
+"""Simplification may take at most this share of ``time_limit_s`` on top of the solve."""
+
+# 3-point Gauss-Legendre on [0, 1]: exact for polynomials up to degree 5 and for a uniform
+# current; the propulsion power along a segment in a depth-linear current is smooth.
+_GAUSS_T = (0.5 - 0.5 * math.sqrt(0.6), 0.5, 0.5 + 0.5 * math.sqrt(0.6))
+_GAUSS_W = (5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0)
+
+_STATUS_NAMES = {
+    "EXACT_SOLUTION": "exact",
+    "APPROXIMATE_SOLUTION": "approximate",
+    "TIMEOUT": "timeout",
+    "INFEASIBLE": "infeasible",
+    "INVALID_START": "invalid_start",
+    "INVALID_GOAL": "invalid_goal",
+    "UNRECOGNIZED_GOAL_TYPE": "unrecognized_goal_type",
+    "CRASH": "crash",
+    "ABORT": "abort",
+    "UNKNOWN": "unknown",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class PathResult:
+    """What one call of :func:`plan_path_3d` delivered."""
+
+    waypoints: np.ndarray
+    """(k, 3) metres (x, y, depth). First row = start; last row = goal when ``exact``; an
+    approximate path ends where the planner got closest; (0, 3) when there is no path."""
+    length_m: float
+    """Length of the polyline, m (``inf`` when there is no path)."""
+    exact: bool
+    """True when the path reaches the goal exactly."""
+    status: str
+    """``"exact"``, ``"approximate"`` (a path towards the goal that does not reach it),
+    ``"timeout"`` (no path within the time limit), or OMPL's other outcomes in lower case
+    (``"infeasible"``, ``"invalid_start"``, ``"invalid_goal"``, ``"crash"``, ...)."""
+    planner: str
+    """OMPL planner name used."""
+    objective: str
+    """``"length"`` or ``"energy"``."""
+    solve_time_s: float
+    """Wall-clock time of OMPL's solve, s."""
+    simplify_time_s: float
+    """Wall-clock time of the simplification, s (0 when not simplified)."""
+    energy_j: float | None
+    """AUV energy along the path (see :func:`segment_energy_j`), J, when a Scenario was
+    given (``inf`` when there is no path), else None."""
+    check_spacing_m: float
+    """Largest gap between checked states along a motion; obstacles were grown by half of
+    it (plus ``clearance_m``) for the check."""
+
+
+# --------------------------------------------------------------------------- energy
+
+
+def segment_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """AUV energy of each straight segment of a polyline under the scenario's current, J.
+
+    ``waypoints_m``: (k, 3); returns (k - 1,). The AUV holds ground speed ``speed_mps``
+    along each segment (as the simulator kernel does), so it needs the water-relative
+    speed ``|v u - c(depth)|`` (``auv.water_relative_speed_mps``), whose propulsion power
+    (paper eq. 15, ``auv.propulsion_power_w``) is averaged along the segment by 3-point
+    Gauss-Legendre quadrature over depth; the move costs ``(P_mean + H) d / v`` (eq. 16,
+    ``auv.move_energy_j``). With no current this is ``(P(v) + H) / v`` per metre.
+    """
+    p = np.asarray(waypoints_m, dtype=float)
+    delta = np.diff(p, axis=0)  # (k-1, 3)
+    dist = np.linalg.norm(delta, axis=1)
+    direction = np.divide(delta, dist[:, None], out=np.zeros_like(delta), where=dist[:, None] > 0)
+    depths = p[:-1, 2, None] + delta[:, 2, None] * np.asarray(_GAUSS_T)  # (k-1, 3 nodes)
+    water_mps = auv.water_relative_speed_mps(
+        direction[:, None, :] * scenario.speed_mps, scenario.current_at_mps(depths)
+    )
+    power_w = auv.propulsion_power_w(
+        water_mps,
+        scenario.drag_coefficient,
+        scenario.frontal_area_m2,
+        scenario.water_density_kg_m3,
+        scenario.propulsion_efficiency,
+    )
+    return auv.move_energy_j(dist, scenario.speed_mps, power_w @ np.asarray(_GAUSS_W), scenario.hotel_power_w)
+
+
+def path_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> float:
+    """Total AUV energy along a polyline (k, 3), J (sum of :func:`segment_energy_j`)."""
+    return float(segment_energy_j(waypoints_m, scenario).sum())
+
+
+def _min_energy_per_m(scenario: Scenario) -> float:
+    """A lower bound on the energy per metre of ground track over all directions and
+    depths, J/m: the water-relative speed is at least min over depth of |v - |c(z)||."""
+    c_top = scenario.current_at_mps(0.0)
+    c_bottom = scenario.current_at_mps(scenario.depth_m)
+    span = c_bottom - c_top
+    t = 0.0 if not span.any() else float(np.clip(-(c_top @ span) / (span @ span), 0.0, 1.0))
+    slowest = float(np.linalg.norm(c_top + t * span))  # |c| is convex in depth
+    fastest = float(max(np.linalg.norm(c_top), np.linalg.norm(c_bottom)))
+    v = scenario.speed_mps
+    water_min = max(slowest - v, v - fastest, 0.0)
+    power = auv.propulsion_power_w(
+        water_min,
+        scenario.drag_coefficient,
+        scenario.frontal_area_m2,
+        scenario.water_density_kg_m3,
+        scenario.propulsion_efficiency,
+    )
+    return float(auv.move_energy_j(1.0, v, power, scenario.hotel_power_w))
+
+
+def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, float, float, float], float]:
+    """A scalar twin of :func:`segment_energy_j` for OMPL's hot loop (one segment, no numpy).
+
+    numpy costs ~15 us per call and the planners ask for hundreds of thousands of motion
+    costs, so this closure repeats the same quadrature on floats. Its constants come from
+    the shared functions: the cubic coefficient of eq. 15 is ``propulsion_power_w(1 m/s)``
+    and the current is the scenario's (linear in depth) at the surface and the bottom. A
+    test pins it to :func:`segment_energy_j`.
+    """
+    v = scenario.speed_mps
+    hotel_w = scenario.hotel_power_w
+    k_w = float(
+        auv.propulsion_power_w(
+            1.0,
+            scenario.drag_coefficient,
+            scenario.frontal_area_m2,
+            scenario.water_density_kg_m3,
+            scenario.propulsion_efficiency,
+        )
+    )
+    c0x, c0y, c0z = (float(c) for c in scenario.current_at_mps(0.0))
+    c1 = scenario.current_at_mps(scenario.depth_m)
+    gx, gy, gz = (float(c) for c in (c1 - np.array([c0x, c0y, c0z])) / scenario.depth_m)
+    nodes = tuple(zip(_GAUSS_T, _GAUSS_W))
+
+    if gx == gy == gz == 0.0:
+
+        def energy_uniform(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
+            dx, dy, dz = bx - ax, by - ay, bz - az
+            d = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if d == 0.0:
+                return 0.0
+            s = v / d
+            wx, wy, wz = dx * s - c0x, dy * s - c0y, dz * s - c0z
+            w2 = wx * wx + wy * wy + wz * wz
+            return (k_w * w2 * math.sqrt(w2) + hotel_w) * d / v
+
+        return energy_uniform
+
+    def energy(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
+        dx, dy, dz = bx - ax, by - ay, bz - az
+        d = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if d == 0.0:
+            return 0.0
+        s = v / d
+        ux, uy, uz = dx * s - c0x, dy * s - c0y, dz * s - c0z
+        cube = 0.0
+        for t, weight in nodes:
+            z = az + t * dz
+            wx, wy, wz = ux - gx * z, uy - gy * z, uz - gz * z
+            w2 = wx * wx + wy * wy + wz * wz
+            cube += weight * w2 * math.sqrt(w2)
+        return (k_w * cube + hotel_w) * d / v
+
+    return energy
+
+
+@functools.lru_cache(maxsize=None)
+def _energy_objective_type() -> type:
+    """The OMPL objective class (built once, on first use, so ompl loads lazily)."""
+    from ompl import base as ob
+
+    class AuvEnergyObjective(ob.OptimizationObjective):
+        """Sum over motions of the AUV's energy (:func:`segment_energy_j`), J."""
+
+        def __init__(self, si: Any, scenario: Scenario):
+            super().__init__(si)
+            self._segment_j = _segment_energy_fn(scenario)
+            self._floor_j_per_m = _min_energy_per_m(scenario)
+            currents = np.stack([scenario.current_at_mps(0.0), scenario.current_at_mps(scenario.depth_m)])
+            self._symmetric = not currents.any()
+            self._zero = ob.Cost(0.0)
+            self.setCostThreshold(ob.Cost(0.0))  # never "good enough": optimise until the limit
+
+        def stateCost(self, state: Any) -> Any:
+            return self._zero
+
+        def motionCost(self, s1: Any, s2: Any) -> Any:
+            return ob.Cost(self._segment_j(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2]))
+
+        def motionCostHeuristic(self, s1: Any, s2: Any) -> Any:
+            # admissible: no metre of ground track costs less than the floor
+            dx, dy, dz = s2[0] - s1[0], s2[1] - s1[1], s2[2] - s1[2]
+            return ob.Cost(self._floor_j_per_m * math.sqrt(dx * dx + dy * dy + dz * dz))
+
+        def isSymmetric(self) -> bool:
+            # with a current, a->b and b->a cost differently; planners must not reuse costs
+            return self._symmetric
+
+    return AuvEnergyObjective
+
+
+# ------------------------------------------------------------------------- geometry
+
+
+class _Seabed:
+    """The scenario's bilinear seabed as per-cell coefficients, for fast scalar lookups."""
+
+    def __init__(self, scenario: Scenario):
+        h = np.asarray(scenario.seabed_height_m, dtype=float)
+        nx, ny = h.shape
+        self.dx = scenario.length_m / (nx - 1)
+        self.dy = scenario.width_m / (ny - 1)
+        self.nx, self.ny = nx, ny
+        gx, gy = np.meshgrid(np.arange(nx) * self.dx, np.arange(ny) * self.dy, indexing="ij")
+        d = scenario.seabed_depth_m(gx, gy)  # depths at the grid nodes, from the shared model
+        a = d[:-1, :-1]
+        b = d[1:, :-1] - a
+        c = d[:-1, 1:] - a
+        e = d[1:, 1:] - d[1:, :-1] - d[:-1, 1:] + a
+        self.cells = [
+            [(float(a[i, j]), float(b[i, j]), float(c[i, j]), float(e[i, j])) for j in range(ny - 1)]
+            for i in range(nx - 1)
+        ]
+        # |grad depth| <= slope inside every cell (bilinear: each partial is bounded by
+        # its edge differences), so a point delta above the seabed is >= delta/sqrt(1+slope^2)
+        # away from it.
+        slope_x = float(np.abs(np.diff(d, axis=0)).max()) / self.dx
+        slope_y = float(np.abs(np.diff(d, axis=1)).max()) / self.dy
+        slope = math.hypot(slope_x, slope_y)
+        self.stretch = math.sqrt(1.0 + slope * slope)
+
+    def depth_m(self, x: float, y: float) -> float:
+        fx = min(max(x / self.dx, 0.0), self.nx - 1.0)
+        fy = min(max(y / self.dy, 0.0), self.ny - 1.0)
+        i = min(int(fx), self.nx - 2)
+        j = min(int(fy), self.ny - 2)
+        tx, ty = fx - i, fy - j
+        a, b, c, e = self.cells[i][j]
+        return a + b * tx + c * ty + e * tx * ty
+
+
+@dataclass(frozen=True)
+class _World:
+    """Bounds and obstacles in plain floats: what the validity checker needs."""
+
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    obstacles: tuple[Box | Sphere, ...]
+    seabed: _Seabed | None
+
+    @property
+    def diagonal_m(self) -> float:
+        return math.dist(self.low, self.high)
+
+    def smallest_obstacle_m(self) -> float:
+        sizes = [
+            2.0 * o.radius_m if isinstance(o, Sphere) else min(h - l for l, h in zip(o.min_m, o.max_m))
+            for o in self.obstacles
+        ]
+        return min(sizes, default=math.inf)
+
+    def distances_m(self, point: Sequence[float]) -> list[tuple[float, str]]:
+        """(lower bound on the distance, name) per obstacle; <= 0 means inside."""
+        x, y, z = point
+        out = []
+        for i, o in enumerate(self.obstacles):
+            if isinstance(o, Sphere):
+                dist = math.dist(point, o.center_m) - o.radius_m
+            else:
+                outside = [max(l - p, 0.0, p - h) for p, l, h in zip(point, o.min_m, o.max_m)]
+                if any(outside):
+                    dist = math.hypot(*outside)
+                else:
+                    dist = -min(min(p - l, h - p) for p, l, h in zip(point, o.min_m, o.max_m))
+            out.append((dist, f"obstacles[{i}] = {o!r}"))
+        if self.seabed is not None:
+            out.append(((self.seabed.depth_m(x, y) - z) / self.seabed.stretch, "the seabed"))
+        return out
+
+    def free_fn(self, grow_m: float) -> Callable[[float, float, float], bool]:
+        """A fast test of one point against the obstacles grown by ``grow_m`` (closed)."""
+        spheres = tuple(
+            (*map(float, o.center_m), (o.radius_m + grow_m) ** 2) for o in self.obstacles if isinstance(o, Sphere)
+        )
+        boxes = tuple((*map(float, o.min_m), *map(float, o.max_m)) for o in self.obstacles if isinstance(o, Box))
+        grow2 = grow_m * grow_m
+        seabed = self.seabed
+        lift = 0.0 if seabed is None else grow_m * seabed.stretch
+
+        def free(x: float, y: float, z: float) -> bool:
+            for cx, cy, cz, r2 in spheres:
+                dx, dy, dz = x - cx, y - cy, z - cz
+                if dx * dx + dy * dy + dz * dz <= r2:
+                    return False
+            for x0, y0, z0, x1, y1, z1 in boxes:
+                dx = x0 - x if x < x0 else (x - x1 if x > x1 else 0.0)
+                if dx > grow_m:
+                    continue
+                dy = y0 - y if y < y0 else (y - y1 if y > y1 else 0.0)
+                dz = z0 - z if z < z0 else (z - z1 if z > z1 else 0.0)
+                if dx * dx + dy * dy + dz * dz <= grow2:
+                    return False
+            if seabed is not None and z >= seabed.depth_m(x, y) - lift:
+                return False
+            return True
+
+        return free
+
+
+def _world_from(scenario_or_obstacles: Any, bounds: Any) -> tuple[_World, Scenario | None]:
+    if isinstance(scenario_or_obstacles, Scenario):
+        sc = scenario_or_obstacles
+        if bounds is not None:
+            raise ConfigError("bounds must be None with a Scenario: its volume gives the bounds", "bounds")
+        seabed = None if sc.seabed_height_m is None else _Seabed(sc)
+        return _World((0.0, 0.0, 0.0), (sc.length_m, sc.width_m, sc.depth_m), tuple(sc.obstacles), seabed), sc
+    try:
+        obstacles = tuple(scenario_or_obstacles)
+    except TypeError:
+        kind = type(scenario_or_obstacles).__name__
+        raise ConfigError(
+            f"scenario_or_obstacles must be a Scenario or a sequence of Box/Sphere, got {kind}",
+            "scenario_or_obstacles",
+        ) from None
+    for i, o in enumerate(obstacles):
+        if not isinstance(o, (Box, Sphere)):
+            raise ConfigError(f"obstacles[{i}] = {o!r} is not a Box or a Sphere", "scenario_or_obstacles")
+    if bounds is None:
+        raise ConfigError(
+            "bounds=((xmin, ymin, zmin), (xmax, ymax, zmax)) is required with a list of obstacles", "bounds"
+        )
+    try:
+        low, high = (tuple(float(v) for v in corner) for corner in bounds)
+    except (TypeError, ValueError):
+        raise ConfigError(f"bounds = {bounds!r} must be ((xmin, ymin, zmin), (xmax, ymax, zmax))", "bounds") from None
+    well_formed = len(low) == 3 and len(high) == 3 and all(math.isfinite(v) for v in low + high)
+    if not well_formed or not all(l < h for l, h in zip(low, high)):
+        raise ConfigError(f"bounds = {bounds!r} must be two finite corners with min < max on every axis", "bounds")
+    return _World(low, high, obstacles, None), None  # type: ignore[arg-type]
+
+
+def _checked_point(name: str, point: Any, world: _World, clearance_m: float) -> tuple[float, float, float]:
+    try:
+        p = np.asarray(point, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} = {point!r} must be three numbers (x, y, depth)", name) from None
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ConfigError(f"{name} = {point!r} must be three finite numbers (x, y, depth)", name)
+    xyz = (float(p[0]), float(p[1]), float(p[2]))
+    if not all(l <= v <= h for v, l, h in zip(xyz, world.low, world.high)):
+        raise ConfigError(f"{name} = {xyz} lies outside the bounds {world.low} .. {world.high}", name)
+    for dist, what in world.distances_m(xyz):
+        if dist <= clearance_m:
+            where = "inside" if dist <= 0 else f"within clearance_m = {clearance_m:g} m of"
+            raise ConfigError(f"{name} = {xyz} lies {where} {what}", name)
+    return xyz
+
+
+def _check_spacing_m(world: _World, ends: dict[str, tuple[float, float, float]], clearance_m: float) -> float:
+    """The motion-check spacing g (see the module docstring)."""
+    default = CHECK_SPACING_FRACTION * world.diagonal_m
+    spacing = min(default, SMALLEST_OBSTACLE_SHARE * world.smallest_obstacle_m())
+    floor = MIN_SPACING_SHARE * default
+    for name, point in ends.items():
+        for dist, what in world.distances_m(point):
+            room = dist - clearance_m  # > 0 after _checked_point
+            if spacing / 2.0 >= room:
+                if 1.8 * room < floor:
+                    raise ConfigError(
+                        f"{name} = {point} lies {room:.3g} m from {what}, closer than the smallest "
+                        f"motion-check margin ({floor / 2:.3g} m); move it away",
+                        name,
+                    )
+                spacing = 1.8 * room
+    return spacing
+
+
+# ------------------------------------------------------------------------- planning
+
+_process_seed: int | None = None
+_planned_unseeded = False
+
+
+def _checked_seed(seed: Any) -> int | None:
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 1 <= seed < 2**32:
+        raise ConfigError(f"seed = {seed!r} must be an integer in [1, 2**32) (OMPL replaces 0 by 1)", "seed")
+    return int(seed)
+
+
+def _apply_seed(seed: int | None) -> None:
+    """Set OMPL's process-wide seed once; refuse any other seed afterwards."""
+    global _process_seed, _planned_unseeded
+    if seed is None:
+        if _process_seed is None:
+            _planned_unseeded = True
+        return
+    if seed == _process_seed:
+        return
+    if _process_seed is not None:
+        raise ConfigError(
+            f"seed = {seed}: OMPL's seed is process-wide and was already set to {_process_seed} in this "
+            "process; use the same seed, or a new process for another seed",
+            "seed",
+        )
+    if _planned_unseeded:
+        raise ConfigError(
+            f"seed = {seed}: this process already planned without a seed, so OMPL has drawn random "
+            "numbers and a seed set now would not make runs reproducible; pass the seed on the first call",
+            "seed",
+        )
+    from ompl import util as ou
+
+    ou.RNG.setSeed(seed)
+    _process_seed = seed
+
+
+def available_planners() -> tuple[str, ...]:
+    """The names of :data:`PLANNERS` that the installed OMPL's Python bindings provide."""
+    from ompl import geometric as og
+
+    return tuple(name for name in PLANNERS if hasattr(og, name))
+
+
+def _choose_planner(planner: str | None, objective: str) -> str:
+    if objective not in OBJECTIVES:
+        choices = ", ".join(map(repr, OBJECTIVES))
+        raise ConfigError(f"objective = {objective!r} is not allowed: must be one of {choices}", "objective")
+    name = DEFAULT_PLANNER[objective] if planner is None else planner
+    available = available_planners()
+    if name not in available:
+        raise ConfigError(f"planner = {name!r} is not available: choose one of {', '.join(available)}", "planner")
+    if objective == "energy" and name in LENGTH_ONLY_PLANNERS:
+        raise ConfigError(
+            f"planner = {name!r} optimises path length only; for objective='energy' use e.g. InformedRRTstar or BITstar",
+            "planner",
+        )
+    if objective == "energy" and name in NO_PYTHON_OBJECTIVE_PLANNERS:
+        raise ConfigError(
+            f"planner = {name!r} cannot use objective='energy': it calls the (Python) objective from a "
+            "second thread and deadlocks in OMPL's Python bindings; use e.g. InformedRRTstar or BITstar",
+            "planner",
+        )
+    return name
+
+
+def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
+    number = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+    ok = number and math.isfinite(value)
+    if not ok or value < 0 or (value == 0 and not allow_zero):
+        allowed = ">= 0" if allow_zero else "> 0"
+        raise ConfigError(f"{name} = {value!r} must be a finite number {allowed}", name)
+    return float(value)
+
+
+def plan_path_3d(
+    start: Sequence[float],
+    goal: Sequence[float],
+    scenario_or_obstacles: Scenario | Sequence[Box | Sphere],
+    *,
+    planner: str | None = None,
+    time_limit_s: float = 0.5,
+    objective: str = "length",
+    seed: int | None = None,
+    bounds: tuple[Sequence[float], Sequence[float]] | None = None,
+    clearance_m: float = 0.0,
+    simplify: bool = True,
+) -> PathResult:
+    """Plan a collision-free 3D path from ``start`` to ``goal`` with OMPL.
+
+    Arguments:
+        start, goal: (x, y, depth) in metres, inside the bounds and at least
+            ``clearance_m`` outside every obstacle (else :class:`ConfigError` naming
+            ``start``/``goal`` and the obstacle).
+        scenario_or_obstacles: a :class:`Scenario` (its volume is the bounds; its boxes,
+            spheres and seabed are obstacles) or a sequence of ``Box``/``Sphere`` with
+            ``bounds``.
+        planner: an OMPL planner name from :func:`available_planners`; ``None`` picks
+            :data:`DEFAULT_PLANNER` for the objective (AORRTC for length, Informed RRT* for
+            energy).
+            AORRTC is length-only and PRM/PRM* cannot take the energy objective (both refused);
+            RRTConnect, RRT and the KPIECEs ignore the objective except in simplification.
+        time_limit_s: wall-clock limit of OMPL's solve, s (always set). Simplification may
+            add at most ``SIMPLIFY_TIME_SHARE`` of it.
+        objective: ``"length"``: OMPL's path length. ``"energy"`` (needs a Scenario): the
+            sum over straight motions of :func:`segment_energy_j` (AUV at ground speed
+            ``speed_mps``; propulsion power at the water-relative speed in the depth-varying
+            current, Gauss-Legendre-averaged along the motion, plus hotel load, times
+            travel time), as a Python ``OptimizationObjective`` with an admissible
+            per-metre lower bound as its heuristic. With no current it is the length
+            times a constant.
+        seed: OMPL's random seed. OMPL has one process-wide seed generator that seeds
+            every RNG as it is created, so the seed is set once per process, on the first
+            call that passes one, and must come before any unseeded call (which would have
+            drawn numbers already). Later calls with the same seed continue the random
+            stream (they do not replay the first plan); a different seed, or a seed after an
+            unseeded call, raises :class:`ConfigError` instead of reseeding. (Checked on
+            ompl 2.0.1: a late ``RNG.setSeed`` logs "Random number generation already
+            started" yet does reseed the RNGs created afterwards, while ``RNG.getSeed()``
+            keeps reporting the first seed; OMPL documents late seeding as unsupported, so
+            this function does not rely on it.) A seed fixes the sample sequence of a fresh
+            process; planners that stop at the first solution (RRTConnect) then repeat their
+            path exactly. Anytime planners stop at a wall-clock limit, so their iteration
+            count depends on the machine's speed and load: in fresh processes with the same
+            seed they repeated their paths on an idle machine and differed under CPU load.
+        bounds: ((xmin, ymin, zmin), (xmax, ymax, zmax)) for an obstacle list; None with a
+            Scenario.
+        clearance_m: keep at least this distance from every obstacle, m.
+        simplify: shortcut and smooth the path with OMPL's PathSimplifier (objective-aware);
+            the result is kept only if it is valid and no worse under the objective.
+
+    Returns a :class:`PathResult`; no path within the limit is a status, not an exception.
+    Sets OMPL's log level to ``LOG_NONE`` (process-wide) so that nothing prints.
+    """
+    time_limit_s = _positive("time_limit_s", time_limit_s)
+    clearance_m = _positive("clearance_m", clearance_m, allow_zero=True)
+    seed = _checked_seed(seed)
+    name = _choose_planner(planner, objective)
+    world, scenario = _world_from(scenario_or_obstacles, bounds)
+    if objective == "energy" and scenario is None:
+        raise ConfigError("objective='energy' needs a Scenario (the AUV and the current)", "objective")
+    a = _checked_point("start", start, world, clearance_m)
+    b = _checked_point("goal", goal, world, clearance_m)
+    spacing = _check_spacing_m(world, {"start": a, "goal": b}, clearance_m)
+
+    if a == b:
+        waypoints = np.array([a])
+        energy = 0.0 if scenario is not None else None
+        return PathResult(waypoints, 0.0, True, "exact", name, objective, 0.0, 0.0, energy, spacing)
+
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    ou.setLogLevel(ou.LOG_NONE)
+    _apply_seed(seed)
+
+    space = ob.RealVectorStateSpace(3)
+    ompl_bounds = ob.RealVectorBounds(3)
+    for axis in range(3):
+        ompl_bounds.setLow(axis, world.low[axis])
+        ompl_bounds.setHigh(axis, world.high[axis])
+    space.setBounds(ompl_bounds)
+    space.setLongestValidSegmentFraction(spacing / space.getMaximumExtent())
+
+    setup = og.SimpleSetup(space)
+    free = world.free_fn(clearance_m + spacing / 2.0)
+
+    def is_valid(state: Any) -> bool:
+        return free(state[0], state[1], state[2])
+
+    setup.setStateValidityChecker(is_valid)
+    si = setup.getSpaceInformation()
+    start_state, goal_state = space.allocState(), space.allocState()
+    for axis in range(3):
+        start_state[axis] = a[axis]
+        goal_state[axis] = b[axis]
+    setup.setStartAndGoalStates(start_state, goal_state)
+    if objective == "energy":
+        cost = _energy_objective_type()(si, scenario)
+    else:
+        cost = ob.PathLengthOptimizationObjective(si)
+    setup.setOptimizationObjective(cost)
+    setup.setPlanner(getattr(og, name)(si))
+
+    t0 = time.perf_counter()
+    outcome = setup.solve(time_limit_s)
+    solve_time_s = time.perf_counter() - t0
+    path = _usable_path(setup, a)
+    simplify_time_s = 0.0
+    if path is not None and simplify:
+        before = og.PathGeometric(path)
+        t0 = time.perf_counter()
+        setup.simplifySolution(SIMPLIFY_TIME_SHARE * time_limit_s)
+        simplify_time_s = time.perf_counter() - t0
+        after = _usable_path(setup, a)
+        if after is None or cost.isCostBetterThan(before.cost(cost), after.cost(cost)):
+            path = before
+        else:
+            path = after
+
+    if path is None:
+        status = _STATUS_NAMES.get(outcome.getStatus().name, outcome.getStatus().name.lower())
+        if status in ("exact", "approximate"):  # OMPL said so, but left no usable path
+            status = "timeout"
+        energy = math.inf if scenario is not None else None
+        return PathResult(
+            np.empty((0, 3)), math.inf, False, status, name, objective, solve_time_s, simplify_time_s, energy, spacing
+        )
+
+    waypoints = np.array([[s[0], s[1], s[2]] for s in path.getStates()])
+    exact = bool(setup.haveExactSolutionPath()) and bool(np.array_equal(waypoints[-1], b))
+    length_m = float(np.linalg.norm(np.diff(waypoints, axis=0), axis=1).sum())
+    energy = path_energy_j(waypoints, scenario) if scenario is not None else None
+    return PathResult(
+        waypoints, length_m, exact, "exact" if exact else "approximate", name, objective,
+        solve_time_s, simplify_time_s, energy, spacing,
+    )
+
+
+def _usable_path(setup: Any, start: tuple[float, float, float]) -> Any:
+    """The setup's solution path if it is a real path from the start that passes OMPL's own
+    motion checks, else None. (AORRTC, on timeout, leaves a one-state "approximate" path
+    holding only the goal; such paths are not reported as solutions.)"""
+    if not setup.haveSolutionPath():
+        return None
+    path = setup.getSolutionPath()
+    if path.getStateCount() < 2:
+        return None
+    first = path.getState(0)
+    if (first[0], first[1], first[2]) != start or not path.check():
+        return None
+    return path
