@@ -1,8 +1,13 @@
-"""Agent-environment steps per second of the two training backends, side by side.
+"""Agent-environment steps per second of the training backends, side by side.
 
-Q-learning on the paper preset (25 nodes by default): the Python loop through
-``gymnasium.make`` and the compiled (numba) loop, in one process, interleaved, each the
-median over repeats; prints both rates and the ratio. Compilation is done before timing.
+Q-learning on the paper preset (25 nodes by default), in one process, interleaved, each the
+median over repeats, compilation done before timing:
+
+- ``compiled``: ``train(..., backend="compiled")``, whole episodes in numba;
+- ``python``: ``train(..., backend="python")`` through ``gymnasium.make``; the environment
+  itself steps with the compiled kernel (its default);
+- ``python, python kernel``: the same loop with the environment's pure-Python kernel
+  (``AuvSwiptEnv(backend="python")``), i.e. no compiled code at all.
 
     python benchmarks/train_speed.py [--nodes 25] [--repeats 5]
 """
@@ -19,8 +24,8 @@ import swiptopt
 from rl import QLearningAgent, train
 
 
-def rate(backend: str, episodes: int, nodes: int, seed: int) -> float:
-    env = gym.make(swiptopt.ENV_ID, preset="paper", n_nodes=nodes)
+def rate(backend: str, episodes: int, nodes: int, seed: int, kernel: str = "auto") -> float:
+    env = gym.make(swiptopt.ENV_ID, preset="paper", n_nodes=nodes, backend=kernel)
     agent = QLearningAgent(env.observation_space.n, seed=seed)
     start = time.perf_counter()
     log = train(agent, env, episodes, seed=seed, backend=backend)
@@ -33,18 +38,20 @@ def main() -> None:
     parser.add_argument("--nodes", type=int, default=25)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--python-episodes", type=int, default=300)
-    parser.add_argument("--compiled-episodes", type=int, default=100_000)
+    parser.add_argument("--compiled-episodes", type=int, default=200_000)
     args = parser.parse_args()
     rate("compiled", 10, args.nodes, 0)  # compile (or load numba's cache) before timing
-    python, compiled = [], []
+    runs: dict[str, list[float]] = {"compiled": [], "python": [], "python, python kernel": []}
     for r in range(args.repeats):
-        python.append(rate("python", args.python_episodes, args.nodes, r))
-        compiled.append(rate("compiled", args.compiled_episodes, args.nodes, r))
-    py, co = statistics.median(python), statistics.median(compiled)
+        runs["compiled"].append(rate("compiled", args.compiled_episodes, args.nodes, r))
+        runs["python"].append(rate("python", args.python_episodes, args.nodes, r))
+        runs["python, python kernel"].append(rate("python", args.python_episodes // 3, args.nodes, r, kernel="python"))
+    med = {k: statistics.median(v) for k, v in runs.items()}
     print(f"Q-learning training, paper preset, {args.nodes} nodes, median of {args.repeats} runs, one core")
-    print(f"  python backend:   {py:>14,.0f} agent-environment steps/s")
-    print(f"  compiled backend: {co:>14,.0f} agent-environment steps/s")
-    print(f"  ratio compiled / python: {co / py:.1f}")
+    for name, value in med.items():
+        print(f"  {name + ' backend:':<32}{value:>14,.0f} agent-environment steps/s")
+    print(f"  ratio compiled / python:                 {med['compiled'] / med['python']:.1f}")
+    print(f"  ratio compiled / python, python kernel:  {med['compiled'] / med['python, python kernel']:.1f}")
 
 
 if __name__ == "__main__":
