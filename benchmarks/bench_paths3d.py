@@ -14,6 +14,12 @@ one seeded stream. Usage:
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# benchmarks/planners.py would shadow the planners package: keep this folder off the path
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
 import argparse
 import math
 import statistics

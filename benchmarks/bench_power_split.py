@@ -11,6 +11,12 @@ shadowing on SNR and power, a random share of the data already collected). Usage
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# benchmarks/planners.py would shadow the planners package: keep this folder off the path
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
 import argparse
 import statistics
 import time

@@ -10,9 +10,13 @@ Each part is also a script of its own (``bench_tsp.py``, ``bench_power_split.py`
 
 from __future__ import annotations
 
-import importlib
+import importlib.util
 import sys
 from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+# this file's name would shadow the planners package: keep its folder off the path
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
 
 PARTS = {"tsp": "bench_tsp", "power_split": "bench_power_split", "paths3d": "bench_paths3d"}
 
@@ -22,10 +26,11 @@ def main() -> None:
     unknown = [c for c in chosen if c not in PARTS]
     if unknown:
         sys.exit(f"unknown part {unknown[0]!r}: choose from {', '.join(PARTS)}")
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     for part in chosen:
         print(f"=== {part} ===", flush=True)
-        module = importlib.import_module(PARTS[part])
+        spec = importlib.util.spec_from_file_location(PARTS[part], HERE / f"{PARTS[part]}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
         saved, sys.argv = sys.argv, [module.__file__]
         try:
             module.main()
