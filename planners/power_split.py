@@ -95,19 +95,26 @@ STATUSES = ("optimal", "optimal_inaccurate", "infeasible", "unbounded", "solver_
 
 
 class _HighsImportNoise(logging.Filter):
-    """Drops cvxpy's log record about failing to import its HIGHS interface.
-
-    When OR-Tools was loaded first in the process, its bundled HiGHS library shadows the one
-    highspy needs, and cvxpy logs an import error for HIGHS (a solver not used here) every
-    time it checks which solvers are installed. Only that record is dropped.
-    """
+    """Drops cvxpy's log record about failing to import its HIGHS interface (see :func:`_cvxpy`)."""
 
     def filter(self, record: logging.LogRecord) -> bool:
         return "importing solver HIGHS" not in record.getMessage()
 
 
 def _cvxpy():  # type: ignore[no-untyped-def]
-    """Import cvxpy, with :class:`_HighsImportNoise` on its logger."""
+    """Import cvxpy so that OR-Tools keeps working in the same process.
+
+    OR-Tools and highspy (a cvxpy dependency) each bundle their own build of the HiGHS
+    library, and the one loaded second in a process fails: if highspy comes first,
+    ``import ortools`` breaks outright. So OR-Tools' native library is loaded first (a small
+    module, when OR-Tools is installed); then only cvxpy's optional HIGHS interface fails,
+    which this package never uses, and :class:`_HighsImportNoise` drops cvxpy's log record
+    about it.
+    """
+    try:
+        import ortools.init.python.init  # noqa: F401  (loads libortools before highspy)
+    except ImportError:
+        pass
     logger = logging.getLogger("__cvxpy__")
     if not any(isinstance(f, _HighsImportNoise) for f in logger.filters):
         logger.addFilter(_HighsImportNoise())
