@@ -128,9 +128,9 @@ def test_killed_run_resumes_without_duplicates(tmp_path):
     expected = {t.key for t in Experiment.from_toml(exp_path).tasks()}
     proc = subprocess.Popen([sys.executable, "-m", "swiptopt.cli", "run", str(exp_path), "--store", str(store), "--workers", "1"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    deadline = time.time() + 120
+    deadline = time.monotonic() + 120  # a wait limit for the polling loop, not a speed check
     stored = 0
-    while time.time() < deadline and proc.poll() is None:
+    while time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.2)
         if store.exists():
             try:
