@@ -123,7 +123,7 @@ def test_quick_sweep_end_to_end(tmp_path, capsys):
 
 
 def test_killed_run_resumes_without_duplicates(tmp_path):
-    exp_path = write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 200").replace("layouts = 2", "layouts = 4"))
+    exp_path = write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 200").replace("layouts = 2", "layouts = 8"))
     store = tmp_path / "kill.sqlite"
     expected = {t.key for t in Experiment.from_toml(exp_path).tasks()}
     proc = subprocess.Popen([sys.executable, "-m", "swiptopt.cli", "run", str(exp_path), "--store", str(store), "--workers", "1"],
@@ -131,7 +131,7 @@ def test_killed_run_resumes_without_duplicates(tmp_path):
     deadline = time.monotonic() + 120  # a wait limit for the polling loop, not a speed check
     stored = 0
     while time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.2)
+        time.sleep(0.05)
         if store.exists():
             try:
                 with sqlite3.connect(store, timeout=1) as db:
