@@ -26,9 +26,12 @@ class HoverPoints:
     k: int
 
 
-def coverage_tables(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """(n_cells, N) coverage from every free cell and the mean available power there, W."""
-    tables = K.build_tables(scenario)
+def coverage_tables(scenario: Scenario, tables: K.Tables | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(n_cells, N) coverage from every free cell and the mean available power there, W.
+
+    ``tables``: the scenario's kernel tables when the caller has them (else built here).
+    """
+    tables = K.build_tables(scenario) if tables is None else tables
     covered = np.zeros((scenario.n_cells, scenario.n_nodes), dtype=bool)
     power = np.zeros((scenario.n_cells, scenario.n_nodes))
     for c in range(scenario.n_cells):
@@ -52,6 +55,7 @@ def kmeans_hover_points(
     *,
     rng: np.random.Generator | int | None = 0,
     max_k: int | None = None,
+    tables: K.Tables | None = None,
 ) -> HoverPoints:
     """Group the coverable nodes with k-means (scikit-learn, seeded) and pick a hover cell each.
 
@@ -61,7 +65,7 @@ def kmeans_hover_points(
     """
     from sklearn.cluster import KMeans
 
-    covered, power = coverage_tables(scenario)
+    covered, power = coverage_tables(scenario, tables)
     coverable = np.flatnonzero(covered.any(axis=0))
     labels = np.full(scenario.n_nodes, -1, dtype=np.int64)
     if coverable.size == 0:
@@ -91,12 +95,14 @@ def kmeans_hover_points(
     raise AssertionError("unreachable")  # the loop returns at kk == limit
 
 
-def hover_link(scenario: Scenario, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def hover_link(
+    scenario: Scenario, cells: np.ndarray, tables: K.Tables | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Mean link SNR (linear) and available power (W) from hover ``cells`` to every node.
 
     Zero where the node is not covered from that cell.
     """
-    covered, _ = coverage_tables(scenario)
+    covered, _ = coverage_tables(scenario, tables)
     d = slant_distances_m(scenario.cell_centers_m[cells], scenario.layout.positions_m)
     budget = link_budget(scenario, d)
     mask = covered[cells]

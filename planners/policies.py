@@ -162,7 +162,7 @@ class KMeansTspPlanner(_Executor):
 
         scenario = _scenario_of(env)
         tables = env.tables
-        hover = kmeans_hover_points(scenario, self.k, rng=self.seed)
+        hover = kmeans_hover_points(scenario, self.k, rng=self.seed, tables=tables)
         if hover.k == 0:
             return Plan([], status="no coverable nodes")
         start = tables.start_cell
@@ -172,7 +172,7 @@ class KMeansTspPlanner(_Executor):
         if kind == "auto":
             kind = "grid" if (scenario.obstacles or scenario.seabed_height_m) else "euclidean"
         if kind == "ompl":
-            costs = self._ompl_costs(scenario, cells)
+            costs = self._ompl_costs(scenario, cells, tables.next_cell)
         elif kind == "grid":
             from planners.grid import distance_matrix
 
@@ -198,10 +198,9 @@ class KMeansTspPlanner(_Executor):
             return Plan([], status="no stop within the episode")
         service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
 
-        index = [cells.index(c) - 1 for c in order]
-        snr, p_av = hover_link(scenario, np.asarray(order))
+        snr, p_av = hover_link(scenario, np.asarray(order), tables)
         layout = scenario.layout
-        from swiptopt.link import auv_power, reward_references
+        from swiptopt.link import reward_references
 
         refs = reward_references(scenario)
         result = optimise_dwell_and_split(
@@ -226,18 +225,17 @@ class KMeansTspPlanner(_Executor):
             stops,
             status=f"tsp {tour.status}, dwell {result.status}",
             details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": sum(moves),
-                     "tour_costs": kind, "power_split": result, "hover_index": index,
-                     "auv_power": auv_power(scenario)},
+                     "tour_costs": kind, "power_split": result},
         )
 
-    def _ompl_costs(self, scenario: Scenario, cells: list[int]) -> np.ndarray:
+    def _ompl_costs(self, scenario: Scenario, cells: list[int], next_cell: np.ndarray) -> np.ndarray:
         """OMPL path lengths between the stops; where OMPL finds no exact path in its time
         limit, the grid's shortest path length (always exact for the executed moves)."""
         from planners.grid import distance_matrix
         from planners.paths3d import plan_path_3d
 
         centres = scenario.cell_centers_m[cells]
-        grid = distance_matrix(K.build_tables(scenario).next_cell, cells) * scenario.cell_size_m
+        grid = distance_matrix(next_cell, cells) * scenario.cell_size_m
         costs = grid.copy()
         for i in range(len(cells)):
             for j in range(i + 1, len(cells)):
@@ -308,7 +306,7 @@ class GreedyPlanner(_Executor):
         self.max_dwell_steps = max_dwell_steps
 
     def make_plan(self, env: Any) -> Plan:
-        covered, power = coverage_tables(_scenario_of(env))
+        covered, power = coverage_tables(_scenario_of(env), env.tables)
         # each node's best hover cell: the covering cell with the most received power
         self._best_cell = np.where(covered.any(axis=0), np.argmax(np.where(covered, power, -1.0), axis=0), -1)
         return Plan([], status="online")

@@ -158,4 +158,5 @@ def execute(
             done += 1
             if on_progress:
                 on_progress(done, len(todo))
-    return RunReport(len({t.key for t in tasks}), len({t.key for t in tasks}) - len(todo), len(todo), time.perf_counter() - start)
+    total = len({t.key for t in tasks})
+    return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start)

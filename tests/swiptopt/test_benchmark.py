@@ -107,7 +107,7 @@ def test_quick_sweep_end_to_end(tmp_path, capsys):
         for r in rows:
             assert r.summaries["data_bits"].n == 2
             assert r.summaries["gap_to_bound"].max <= 1.0
-            assert r.summaries["return"].mean <= min(r.summaries["return"].max, 1e9)
+            assert r.summaries["gap_to_bound"].min >= 0.0  # no task beat the upper bound
         assert s.runs()[0]["provenance"]["versions"]["numpy"]
     # a rerun finds everything stored and runs nothing
     assert main(["run", str(exp_path), "--store", str(store), "--format", "markdown"]) == 0
