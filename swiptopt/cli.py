@@ -112,14 +112,25 @@ def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-unt
     title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({missing} tasks missing)" if missing else "")
     if fmt == "terminal":
         Console(width=max(160, Console().width)).print(tables.to_rich(rows, title))
-        text = tables.to_markdown(rows)
+        text = tables.to_markdown(rows)  # what --output writes
     else:
         text = tables.render(rows, fmt)
         click.echo(text, nl=False)
+    pairs = tables.paired(experiment, store)
+    if pairs:
+        paired_title = tables.paired_title(experiment)
+        if fmt == "terminal":
+            Console(width=max(160, Console().width)).print(tables.paired_to_rich(pairs, paired_title))
+            paired_text = tables.render_paired(pairs, "markdown")
+        else:
+            paired_text = tables.render_paired(pairs, fmt)
+            click.echo("")  # a blank line ends the first table
+            click.echo(paired_text, nl=False)
+        text += "\n" + paired_text
     if output:
         from pathlib import Path
 
-        Path(output).write_text(text if fmt != "terminal" else tables.to_markdown(rows), encoding="utf-8")
+        Path(output).write_text(text, encoding="utf-8")
 
 
 @cli.command()

@@ -26,6 +26,10 @@ File format::
 
     [figure]             # optional: what `swiptopt plot` draws
     metric = "data_bits"
+
+A top-level ``baseline = "random"`` (one of the experiment's algorithms) adds a second
+table: every other algorithm's mean over the baseline's on the same layouts and seeds, with
+a bootstrap confidence interval and the number of tasks won.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from swiptopt.scenario import Scenario, ScenarioError
 EVALUATION_OFFSET = 1_000_003
 
 ALL_ALGORITHMS = tuple(ALGORITHMS)
-TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure"}
+TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline"}
 FIGURE_KEYS = {"metric", "x", "title", "ylabel", "xlabel"}
 
 
@@ -94,6 +98,8 @@ class Experiment:
     episodes: int = 10
     figure: dict[str, Any] = field(default_factory=dict)
     description: str = ""
+    baseline: str = ""
+    """An algorithm of the experiment that the others are compared with, task by task."""
 
     def __post_init__(self) -> None:
         for key, low in (("layouts", 1), ("seeds", 1), ("episodes", 1)):
@@ -106,6 +112,11 @@ class Experiment:
             if not isinstance(settings, dict):
                 raise ConfigError(f"algorithms.{name} must be a table of settings", name)
             resolve_settings(name, settings)
+        if self.baseline and self.baseline not in self.algorithms:
+            raise ConfigError(
+                f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(self.algorithms)})",
+                "baseline",
+            )
         names = {f.name for f in dataclasses.fields(Scenario)}
         for key, values in self.sweep.items():
             if key not in names or key == "layout_seed":
@@ -132,6 +143,8 @@ class Experiment:
         for key in ("scenario", "sweep", "algorithms", "figure"):
             if key in data and not isinstance(data[key], dict):
                 raise ConfigError(f"[{key}] must be a table", key)
+        if not isinstance(data.get("baseline", ""), str):
+            raise ConfigError(f"baseline = {data['baseline']!r} must be an algorithm's name", "baseline")
         name = data.get("name", "experiment")
         if not isinstance(name, str) or not name:
             raise ConfigError(f"name = {name!r} must be a non-empty string", "name")
@@ -145,6 +158,7 @@ class Experiment:
             episodes=data.get("episodes", 10),
             figure=dict(data.get("figure", {})),
             description=str(data.get("description", "")),
+            baseline=data.get("baseline", ""),
         )
 
     @classmethod
@@ -233,6 +247,17 @@ def builtin_experiments() -> dict[str, Experiment]:
                 algorithms=_ALL,
                 layouts=6,
                 episodes=10,
+                baseline="random",
+            ),
+            _builtin(
+                "rl-vs-random",
+                "the paper's claim: trained Q-learning and SARSA against the random trajectory, "
+                "paper preset, 25 nodes, 40 layouts",
+                scenario={**paper, "n_nodes": 25},
+                algorithms=_PAPER_ALGORITHMS,
+                layouts=40,
+                episodes=20,
+                baseline="random",
             ),
             _builtin(
                 "fig-reward-vs-split",

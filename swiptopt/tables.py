@@ -4,6 +4,11 @@ Each task's episodes are averaged first; the summary is then taken over tasks (l
 seeds), so the confidence interval reflects the variation between layouts, as in the
 paper's Monte Carlo over layouts. A metric with no value in an episode (a target never
 reached) is left out of that average and counted as missing, never as a number.
+
+An experiment with a ``baseline`` algorithm also gets a paired table (:func:`paired`): for
+each other algorithm and metric, the ratio of its mean to the baseline's over the tasks both
+ran (the same scenario, layout and seed), a 95 % bootstrap confidence interval of that
+ratio, and on how many of those tasks it beat the baseline.
 """
 
 from __future__ import annotations
@@ -57,19 +62,28 @@ def _task_mean(records: list[dict[str, Any]], metric: str) -> float | None:
     return float(np.mean(values)) if values else None
 
 
-def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], int]:
-    """Rows of the experiment's stored results, and how many of its tasks are missing."""
+def _stored(experiment: Experiment, store: ResultStore) -> tuple[dict[tuple[int, str], dict[int, dict[str, Any]]], int]:
+    """The stored results by (sweep point index, algorithm), each keyed by task seed (which
+    names the layout and the seed), and how many tasks are missing."""
     tasks = experiment.tasks()
     results = store.get({t.key for t in tasks})
+    points = experiment.points()
+    out: dict[tuple[int, str], dict[int, dict[str, Any]]] = {}
+    for t in tasks:
+        if t.key in results:
+            out.setdefault((points.index(t.point), t.algorithm), {})[t.seed] = results[t.key]
+    return out, len(tasks) - sum(len(v) for v in out.values())
+
+
+def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], int]:
+    """Rows of the experiment's stored results, and how many of its tasks are missing."""
+    stored, missing = _stored(experiment, store)
     names = labels()
     rows = []
-    missing = 0
-    for point in experiment.points():
+    for p, point in enumerate(experiment.points()):
         point_rows = []
         for algorithm in experiment.algorithms:
-            chosen = [t for t in tasks if t.point == point and t.algorithm == algorithm]
-            found = [results[t.key] for t in chosen if t.key in results]
-            missing += len(chosen) - len(found)
+            found = list(stored.get((p, algorithm), {}).values())
             if not found:
                 continue
             per_metric: dict[str, list[Any]] = {m: [_task_mean(r["records"], m) for r in found] for m in EPISODE_METRICS}
@@ -92,6 +106,118 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
         for i, (algorithm, summaries, n) in enumerate(point_rows):
             rows.append(Row(point, algorithm, names.get(algorithm, algorithm), summaries, ranks[i], n))
     return rows, missing
+
+
+#: Metrics of the paired comparison with the baseline: (metric, heading).
+PAIRED = (
+    ("return", "return"),
+    ("data_bits", "data"),
+    ("energy_delivered_j", "energy"),
+    ("energy_efficiency_bit_per_j", "bit/J (all)"),
+    ("mobility_efficiency_bit_per_j", "bit/J (motion)"),
+)
+BOOTSTRAP_RESAMPLES = 4000
+
+
+@dataclass(frozen=True)
+class Ratio:
+    """An algorithm's mean over the baseline's, over tasks both have a value for.
+
+    ``low``/``high`` bound a 95 % percentile-bootstrap interval (tasks resampled in pairs;
+    NaN with fewer than 2 pairs, or when a resample's baseline mean is not positive);
+    ``wins`` counts the tasks where the algorithm's value is higher.
+    """
+
+    ratio: float
+    low: float
+    high: float
+    wins: int
+    n: int
+
+    @classmethod
+    def of(cls, values: np.ndarray, baseline: np.ndarray, rng: np.random.Generator,
+           resamples: int = BOOTSTRAP_RESAMPLES) -> Ratio:
+        x, y = np.asarray(values, float), np.asarray(baseline, float)
+        n = len(x)
+        wins = int(np.sum(x > y))
+        if n == 0 or y.sum() <= 0:
+            return cls(math.nan, math.nan, math.nan, wins, n)
+        ratio = float(x.sum() / y.sum())
+        if n < 2:
+            return cls(ratio, math.nan, math.nan, wins, n)
+        pick = rng.integers(0, n, size=(resamples, n))
+        den = y[pick].sum(axis=1)
+        if np.any(den <= 0):
+            return cls(ratio, math.nan, math.nan, wins, n)
+        low, high = np.percentile(x[pick].sum(axis=1) / den, [2.5, 97.5])
+        return cls(ratio, float(low), float(high), wins, n)
+
+
+@dataclass(frozen=True)
+class PairedRow:
+    """One algorithm against the baseline at one sweep point."""
+
+    point: dict[str, Any]
+    algorithm: str
+    label: str
+    ratios: dict[str, Ratio]
+
+
+def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[PairedRow]:
+    """Every algorithm but the experiment's baseline, against the baseline, task by task.
+
+    The bootstrap draws from a generator seeded with ``seed``, so a table prints the same
+    interval every time.
+    """
+    if not experiment.baseline:
+        return []
+    stored, _ = _stored(experiment, store)
+    names = labels()
+    rng = np.random.default_rng(seed)
+    rows = []
+    for p, point in enumerate(experiment.points()):
+        base = stored.get((p, experiment.baseline), {})
+        for algorithm in experiment.algorithms:
+            mine = stored.get((p, algorithm), {})
+            if algorithm == experiment.baseline or not mine:
+                continue
+            ratios = {}
+            for metric, _ in PAIRED:
+                pairs = [
+                    (a, b)
+                    for task_seed in sorted(set(mine) & set(base))
+                    if (a := _task_mean(mine[task_seed]["records"], metric)) is not None
+                    and (b := _task_mean(base[task_seed]["records"], metric)) is not None
+                ]
+                x, y = (np.array(v, float) for v in zip(*pairs)) if pairs else (np.zeros(0), np.zeros(0))
+                ratios[metric] = Ratio.of(x, y, rng)
+            rows.append(PairedRow(point, algorithm, names.get(algorithm, algorithm), ratios))
+    return rows
+
+
+def _ratio_cell(r: Ratio, dash: str = "–") -> str:
+    if math.isnan(r.ratio):
+        return f"n/a ({r.wins}/{r.n})"
+    interval = "" if math.isnan(r.low) else f" [{r.low:.2f}{dash}{r.high:.2f}]"
+    return f"{r.ratio:.2f}×{interval} {r.wins}/{r.n}"
+
+
+def _paired_table(rows: list[PairedRow], dash: str = "–") -> tuple[list[str], list[list[str]]]:
+    has_point = any(r.point for r in rows)
+    heads = (["point"] if has_point else []) + ["algorithm"] + [h for _, h in PAIRED]
+    cells = [
+        ([_point_label(r.point)] if has_point else []) + [r.label] + [_ratio_cell(r.ratios[m], dash) for m, _ in PAIRED]
+        for r in rows
+    ]
+    return heads, cells
+
+
+def paired_title(experiment: Experiment) -> str:
+    label = labels().get(experiment.baseline, experiment.baseline)
+    return (
+        f"{experiment.name}: mean / mean of {label} over the same layouts and seeds, "
+        "[95 % bootstrap CI], tasks won"
+    )
 
 
 def _cell(s: Summary | None, scale: float, digits: int, plus: str = "±") -> str:
@@ -130,21 +256,61 @@ def _cells(row: Row, rows: list[Row], plus: str = "±") -> list[str]:
     return out
 
 
-def to_markdown(rows: list[Row]) -> str:
-    heads = _headings(rows)
+def _markdown(heads: list[str], cells: list[list[str]]) -> str:
     lines = ["| " + " | ".join(heads) + " |", "|" + "|".join("---" for _ in heads) + "|"]
-    lines += ["| " + " | ".join(_cells(r, rows)) + " |" for r in rows]
+    lines += ["| " + " | ".join(c) + " |" for c in cells]
     return "\n".join(lines) + "\n"
+
+
+def _latex(heads: list[str], cells: list[list[str]], numeric: int) -> str:
+    esc = lambda s: s.replace("%", r"\%").replace("_", r"\_").replace("×", r"$\times$")  # noqa: E731
+    lines = [r"\begin{tabular}{" + "l" * (len(heads) - numeric) + "r" * numeric + "}", r"\hline"]
+    lines.append(" & ".join(esc(h) for h in heads) + r" \\ \hline")
+    lines += [" & ".join(esc(c) for c in row) + r" \\" for row in cells]
+    lines += [r"\hline", r"\end{tabular}"]
+    return "\n".join(lines) + "\n"
+
+
+def to_markdown(rows: list[Row]) -> str:
+    return _markdown(_headings(rows), [_cells(r, rows) for r in rows])
 
 
 def to_latex(rows: list[Row]) -> str:
-    heads = _headings(rows)
-    esc = lambda s: s.replace("%", r"\%").replace("_", r"\_")  # noqa: E731
-    lines = [r"\begin{tabular}{" + "l" * (len(heads) - len(DISPLAY)) + "r" * len(DISPLAY) + "}", r"\hline"]
-    lines.append(" & ".join(esc(h) for h in heads) + r" \\ \hline")
-    lines += [" & ".join(esc(c) for c in _cells(r, rows, r"$\pm$")) + r" \\" for r in rows]
-    lines += [r"\hline", r"\end{tabular}"]
-    return "\n".join(lines) + "\n"
+    return _latex(_headings(rows), [_cells(r, rows, r"$\pm$") for r in rows], len(DISPLAY))
+
+
+def paired_to_csv(rows: list[PairedRow]) -> str:
+    """Every ratio of the paired table: ratio, CI bounds, wins and pairs."""
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    keys = sorted({k for r in rows for k in r.point})
+    writer.writerow(keys + ["algorithm", "metric", "ratio", "ci95_low", "ci95_high", "wins", "n"])
+    for r in rows:
+        for metric, q in r.ratios.items():
+            writer.writerow([r.point.get(k) for k in keys] + [r.algorithm, metric, q.ratio, q.low, q.high, q.wins, q.n])
+    return buf.getvalue()
+
+
+def render_paired(rows: list[PairedRow], fmt: str) -> str:
+    """The paired table as Markdown, CSV or LaTeX text."""
+    if fmt == "csv":
+        return paired_to_csv(rows)
+    if fmt == "latex":
+        heads, cells = _paired_table(rows, "--")
+        return _latex(heads, cells, len(PAIRED))
+    return _markdown(*_paired_table(rows))
+
+
+def paired_to_rich(rows: list[PairedRow], title: str):  # type: ignore[no-untyped-def]
+    from rich.table import Table
+
+    heads, cells = _paired_table(rows)
+    table = Table(title=title, title_justify="left")
+    for i, head in enumerate(heads):
+        table.add_column(head, justify="right" if i >= len(heads) - len(PAIRED) else "left")
+    for c in cells:
+        table.add_row(*c)
+    return table
 
 
 def to_csv(rows: list[Row]) -> str:

@@ -73,16 +73,18 @@ def test_replay_option_learns_deterministically():
 
 
 def test_agents_learn_on_unseen_layouts():
-    """Paper preset, 25 nodes, layouts and seeds not used while building the toolkit."""
+    """Paper preset, 25 nodes, paper's defaults, layouts and seeds not used while building
+    the toolkit: the greedy policies beat the random trajectory on data, on bits per joule
+    of AUV motion (the paper's efficiency) and on return, pooled over 8 layouts.
+    (`swiptopt run rl-vs-random` measures the same over 40 layouts, with intervals.)"""
     metrics = ("data_bits", "mobility_efficiency_bit_per_j", "return")
     totals = {alg: np.zeros(len(metrics)) for alg in ("random", "q_learning", "sarsa")}
-    for layout in (21, 22, 23):
+    for layout in range(21, 29):
         scenario = Scenario.preset("paper", n_nodes=25, layout_seed=layout)
         for alg in totals:
             result = paper_protocol(scenario, alg, train_episodes=20_000, eval_episodes=10, seed=layout)
             totals[alg] += [result.evaluation.summary[m].mean for m in metrics]
-    q, sarsa, rand = totals["q_learning"], totals["sarsa"], totals["random"]
-    assert q[0] > 1.1 * rand[0]  # more data
-    assert q[1] > 1.2 * rand[1]  # more bits per joule of AUV motion (the paper's efficiency)
-    assert q[2] > 1.5 * rand[2]  # a higher return
-    assert sarsa[2] > 1.2 * rand[2]
+    q, sarsa, rand = totals["q_learning"] / totals["random"], totals["sarsa"] / totals["random"], totals["random"]
+    assert np.all(rand > 0)
+    assert q[0] > 1.3 and q[1] > 1.3 and q[2] > 2.0, q  # measured 1.9, 1.9, 3.1
+    assert sarsa[0] > 1.1 and sarsa[1] > 1.1 and sarsa[2] > 1.5, sarsa  # measured 1.4, 1.5, 2.3

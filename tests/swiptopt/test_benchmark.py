@@ -5,6 +5,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from swiptopt.cli import main
@@ -74,6 +75,7 @@ def test_experiment_expansion_and_keys(tmp_path):
         ("name = 'x'\n[algorithms.q_learning]\nlearning_rate = 3\n", ["learning_rate"]),
         ("name = 'x'\n[algorithms.greedy]\nspeed = 3\n", ["unknown setting 'speed'"]),
         ("name = 'x'\n[sweep]\nn_nodes = [10, -1]\n[algorithms.random]\n", ["n_nodes", "-1"]),
+        ("name = 'x'\nbaseline = 'greedy'\n[algorithms.random]\n", ["baseline = 'greedy'", "random"]),
     ],
 )
 def test_bad_experiments_exit_2_with_one_line(tmp_path, text, words):
@@ -164,3 +166,43 @@ def test_dask_local_cluster_gives_the_same_table(tmp_path):
 def test_builtin_lookup():
     assert load_experiment("compare").name == "compare"
     assert set(builtin_experiments()["compare"].algorithms) == {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy"}
+
+
+def test_ratio_of_means_and_its_interval():
+    rng = np.random.default_rng(0)
+    exact = tables.Ratio.of(np.array([2.0, 4.0, 6.0]), np.array([1.0, 2.0, 3.0]), rng)
+    assert (exact.ratio, exact.low, exact.high, exact.wins, exact.n) == (2.0, 2.0, 2.0, 3, 3)
+    mixed = tables.Ratio.of(np.array([1.0, 3.0, 5.0, 1.0]), np.array([2.0, 2.0, 2.0, 2.0]), rng)
+    assert mixed.ratio == 1.25 and mixed.wins == 2
+    assert 0.5 <= mixed.low < 1.25 < mixed.high <= 2.0  # resampled sums stay within [1, 5] / 2
+    assert np.isnan(tables.Ratio.of(np.array([1.0]), np.array([0.0]), rng).ratio)
+    single = tables.Ratio.of(np.array([3.0]), np.array([2.0]), rng)
+    assert single.ratio == 1.5 and np.isnan(single.low)
+
+
+def test_paired_table_against_the_baseline(tmp_path, capsys):
+    exp_path = write(tmp_path, 'baseline = "random"\n' + QUICK_TOML)
+    exp = Experiment.from_toml(exp_path)
+    store = tmp_path / "p.sqlite"
+    assert main(["run", str(exp_path), "--store", str(store), "--format", "markdown"]) == 0
+    out = capsys.readouterr().out
+    assert "mean / mean of random" not in out  # titles go to the terminal table only
+    assert "| point | algorithm | return | data |" in out and "×" in out
+    with ResultStore(store) as s:
+        rows, _ = tables.aggregate(exp, s)
+        pairs = tables.paired(exp, s)
+        assert tables.paired(exp, s) == pairs  # the bootstrap is seeded
+    assert {(str(p.point), p.algorithm) for p in pairs} == {
+        (str(r.point), r.algorithm) for r in rows if r.algorithm != "random"
+    }
+    means = {(str(r.point), r.algorithm): r.summaries for r in rows}
+    for p in pairs:
+        for metric in ("data_bits", "mobility_efficiency_bit_per_j"):
+            q = p.ratios[metric]
+            # every task has its baseline twin, so the ratio of means is the table's ratio
+            expected = means[(str(p.point), p.algorithm)][metric].mean / means[(str(p.point), "random")][metric].mean
+            assert q.ratio == pytest.approx(expected, rel=1e-12)
+            assert q.n == 2 and 0 <= q.wins <= 2
+            assert q.low <= q.ratio * (1 + 1e-12) and q.ratio <= q.high * (1 + 1e-12)
+    assert main(["table", str(store), "--format", "csv"]) == 0
+    assert "algorithm,metric,ratio,ci95_low,ci95_high,wins,n" in capsys.readouterr().out.replace("n_nodes,", "")
