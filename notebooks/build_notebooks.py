@@ -676,6 +676,7 @@ HEAD_TO_HEAD = [
             "layouts": LAYOUTS,
             "seeds": 1,
             "episodes": EPISODES,
+            "baseline": "random",
             "algorithms": {
                 "q_learning": {"train_episodes": TRAIN_EPISODES},
                 "sarsa": {"train_episodes": TRAIN_EPISODES},
@@ -710,6 +711,20 @@ HEAD_TO_HEAD = [
             provenance = store.runs()[-1]["provenance"]
         print(f"{missing} tasks missing; swiptopt {provenance['versions']['swiptopt']}, numpy {provenance['versions']['numpy']}")
         display(Markdown(tables.to_markdown(rows)))
+        """
+    ),
+    md(
+        """
+        With `baseline = "random"`, `tables.paired` divides each algorithm's mean by the
+        random trajectory's over the same layouts: the ratio, a seeded 95 % bootstrap
+        interval, and on how many layouts the algorithm did better.
+        """
+    ),
+    code(
+        """
+        with ResultStore(store_path, create=False) as store:
+            pairs = tables.paired(experiment, store)
+        display(Markdown(tables.render_paired(pairs, "markdown")))
         """
     ),
     code(

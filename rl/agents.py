@@ -44,7 +44,7 @@ class RandomAgent:
         """The training-time action (random)."""
         return core.random_action(self.rng_, self.n_actions)
 
-    def predict(self, obs: Any, deterministic: bool = True) -> int:
+    def predict(self, obs: Any, deterministic: bool = False) -> int:
         """A random action: the random trajectory is random when evaluated, too."""
         return core.random_action(self.rng_, self.n_actions)
 
