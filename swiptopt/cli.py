@@ -11,7 +11,7 @@ from pathlib import Path
 
 import click
 
-from swiptopt.errors import ConfigError
+from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import PRESETS, Scenario, ScenarioError
 
 EXIT_BAD_INPUT = 2
@@ -24,7 +24,9 @@ def load_scenario(spec: str) -> Scenario:
     path = Path(spec)
     if path.suffix.lower() == ".toml" or path.exists():
         return Scenario.from_toml(path)
-    raise ScenarioError(f"{spec!r} is neither a preset ({', '.join(sorted(PRESETS))}) nor a .toml file")
+    raise ScenarioError(
+        f"{spec!r} is neither a preset{did_you_mean(spec, PRESETS)} ({', '.join(sorted(PRESETS))}) nor a .toml file"
+    )
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -45,7 +47,7 @@ def scenario_show(spec: str) -> None:
     """Print a scenario's parameters with units, its link budget and the AUV's power."""
     from rich.console import Console
 
-    from swiptopt.report import scenario_tables
+    from swiptopt.benchmark.report import scenario_tables
 
     console = Console()
     for table in scenario_tables(load_scenario(spec)):
@@ -79,8 +81,8 @@ def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, outp
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swiptopt.runner import execute
-    from swiptopt.store import DEFAULT_STORE, ResultStore
+    from swiptopt.benchmark.runner import execute
+    from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     if quick:
         experiment = experiment.quick()
@@ -106,7 +108,7 @@ def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, outp
 def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-untyped-def]
     from rich.console import Console
 
-    from swiptopt import tables
+    from swiptopt.benchmark import tables
 
     rows, missing = tables.aggregate(experiment, store)
     title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({missing} tasks missing)" if missing else "")
@@ -133,21 +135,72 @@ def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-unt
         Path(output).write_text(text, encoding="utf-8")
 
 
-@cli.command()
+def _builtin_list() -> list[tuple[str, str]]:
+    from swiptopt.benchmark.experiment import builtin_experiments
+
+    return [(name, e.description) for name, e in builtin_experiments().items()]
+
+
+class _ListsExperiments(click.Command):
+    """A command whose help ends with the built-in experiments, one line each."""
+
+    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section("Built-in experiments"):
+            formatter.write_dl(_builtin_list())
+        super().format_epilog(ctx, formatter)
+
+
+class _DescribesSuite(click.Command):
+    """``compare``: its help ends with what the standard suite holds, read from the experiment."""
+
+    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        from swiptopt.benchmark.experiment import builtin_experiments
+
+        suite = builtin_experiments()["compare"]
+        scenario = ", ".join(f"{k} = {v}" for k, v in suite.scenario.items())
+        rows = [
+            ("scenario", scenario),
+            ("algorithms", ", ".join(suite.algorithms)),
+            ("layouts", f"{suite.layouts} node layouts (layout seeds 0..{suite.layouts - 1}), {suite.seeds} seed each"),
+            ("episodes", f"{suite.episodes} greedy evaluation episodes per task"),
+            ("baseline", suite.baseline or "none"),
+        ]
+        with formatter.section("The standard suite (built-in experiment 'compare')"):
+            formatter.write_dl(rows)
+        super().format_epilog(ctx, formatter)
+
+
+@cli.command(cls=_DescribesSuite)
 @_with_run_options
 def compare(quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
-    """Every algorithm on the standard suite, as one table (the main job)."""
-    from swiptopt.experiment import builtin_experiments
+    """Every algorithm on the standard suite, as one table (the main job).
+
+    Prints every metric with a 95 % confidence interval over layouts, then every algorithm
+    against the baseline, layout by layout. Finished tasks go to the store, so a second
+    run only prints.
+    """
+    from swiptopt.benchmark.experiment import builtin_experiments
 
     _run_and_report(builtin_experiments()["compare"], quick, store_path, workers, scheduler, fmt, output)
 
 
-@cli.command()
+def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    width = max(len(name) for name, _ in _builtin_list())
+    for name, description in _builtin_list():
+        click.echo(f"{name:<{width}}  {description}")
+    ctx.exit(0)
+
+
+@cli.command(cls=_ListsExperiments)
 @click.argument("spec", metavar="NAME|FILE.toml")
+@click.option("--list", "list_", is_flag=True, expose_value=False, is_eager=True, callback=_print_builtins,
+              help="List the built-in experiments and exit.")
 @_with_run_options
 def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
-    """Run a built-in experiment or a TOML experiment file and print its table."""
-    from swiptopt.experiment import load_experiment
+    """Run a built-in experiment (by NAME) or a TOML experiment file and print its table."""
+    from swiptopt.benchmark.experiment import load_experiment
 
     _run_and_report(load_experiment(spec), quick, store_path, workers, scheduler, fmt, output)
 
@@ -163,10 +216,10 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
     """Run every experiment of the paper's figures and write the figures and their data."""
     from rich.console import Console
 
-    from swiptopt import plots
-    from swiptopt.experiment import builtin_experiments
-    from swiptopt.runner import execute
-    from swiptopt.store import DEFAULT_STORE, ResultStore
+    from swiptopt.benchmark import plots
+    from swiptopt.benchmark.experiment import builtin_experiments
+    from swiptopt.benchmark.runner import execute
+    from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     console = Console(stderr=True)
     written = plots.coverage_figure(outdir, quick=quick)
@@ -189,8 +242,8 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
 @click.option("--output", type=click.Path(dir_okay=False), default=None)
 def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
     """Print the tables of the experiments recorded in a results store."""
-    from swiptopt.experiment import Experiment
-    from swiptopt.store import ResultStore
+    from swiptopt.benchmark.experiment import Experiment
+    from swiptopt.benchmark.store import ResultStore
 
     with ResultStore(store_path, create=False) as store:
         runs = [r for r in store.runs() if name is None or r["experiment"] == name]
@@ -205,9 +258,9 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures")
 def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
     """Draw the figure of every experiment in a results store that defines one."""
-    from swiptopt import plots
-    from swiptopt.experiment import Experiment
-    from swiptopt.store import ResultStore
+    from swiptopt.benchmark import plots
+    from swiptopt.benchmark.experiment import Experiment
+    from swiptopt.benchmark.store import ResultStore
 
     with ResultStore(store_path, create=False) as store:
         drawn = []

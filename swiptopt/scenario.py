@@ -23,7 +23,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from swiptopt.acoustics import THORP_VALID_KHZ
-from swiptopt.errors import ConfigError
+from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.tomlfile import read_toml
 
 
@@ -335,7 +335,9 @@ class Scenario:
     def preset(cls, name: str, **overrides: Any) -> Scenario:
         """A named preset (``paper``, ``harbour``, ``tiny``) with field overrides."""
         if name not in PRESETS:
-            raise ScenarioError(f"unknown preset {name!r}: choose one of {sorted(PRESETS)}", "preset")
+            raise ScenarioError(
+                f"unknown preset {name!r}{did_you_mean(name, PRESETS)}: choose one of {sorted(PRESETS)}", "preset"
+            )
         values = {"name": name, **PRESETS[name]}
         values.update(overrides)
         return cls.from_dict(values)
@@ -348,9 +350,7 @@ class Scenario:
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
         if unknown:
-            close = [n for n in names if n.split("_")[0] == unknown[0].split("_")[0]]
-            hint = f" (did you mean {sorted(close)[0]!r}?)" if close else ""
-            raise ScenarioError(f"unknown scenario key {unknown[0]!r}{hint}", unknown[0])
+            raise ScenarioError(f"unknown scenario key {unknown[0]!r}{did_you_mean(unknown[0], names)}", unknown[0])
         if preset is not None:
             if not isinstance(preset, str):
                 raise ScenarioError(f"preset = {preset!r} must be a preset name", "preset")

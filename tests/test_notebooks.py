@@ -1,4 +1,8 @@
-"""The analysis notebooks run top to bottom, stay stripped and match their generator.
+"""The analysis notebooks run top to bottom, stay stripped and match their sources.
+
+Each notebook is written as a Jupytext percent-format script (``notebooks/NN_name.py``, the
+file to read and edit) paired with a committed ``.ipynb`` without outputs
+(``jupytext --sync notebooks/*.py`` refreshes the pair).
 
 Each notebook is executed with nbclient on small settings (``SWIPTOPT_NOTEBOOK_QUICK=1``)
 in a kernel that runs this interpreter, from a temporary working directory, so a notebook
@@ -8,7 +12,6 @@ notebook, so pytest-xdist spreads them over workers.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -17,10 +20,12 @@ import pytest
 
 nbformat = pytest.importorskip("nbformat")
 nbclient = pytest.importorskip("nbclient")
+jupytext = pytest.importorskip("jupytext")
 pytest.importorskip("ipykernel")
 
 NOTEBOOK_DIR = Path(__file__).resolve().parent.parent / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+SOURCES = sorted(NOTEBOOK_DIR.glob("[0-9][0-9]_*.py"))
 CELL_TIMEOUT_S = 300
 
 # Run first in the kernel: fail unless the kernel is this interpreter, and record every
@@ -72,13 +77,6 @@ assert not _unlabelled, "axes without labels: " + "; ".join(_unlabelled)
 """
 
 
-def load_generator():
-    spec = importlib.util.spec_from_file_location("build_notebooks", NOTEBOOK_DIR / "build_notebooks.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture
 def kernel_home(tmp_path, monkeypatch):
     """A ``python3`` kernel spec that runs this interpreter, found first on JUPYTER_PATH,
@@ -102,8 +100,9 @@ def kernel_home(tmp_path, monkeypatch):
     return workdir
 
 
-def test_there_are_notebooks():
-    assert [p.name for p in NOTEBOOKS] == sorted(load_generator().NOTEBOOKS)
+def test_every_source_has_its_notebook():
+    assert len(SOURCES) >= 4
+    assert [p.stem for p in NOTEBOOKS] == [p.stem for p in SOURCES]
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
@@ -134,7 +133,23 @@ def test_notebook_is_stripped(path):
     assert nb.metadata.get("kernelspec", {}).get("name") == "python3"
 
 
-def test_notebooks_match_their_generator():
-    generator = load_generator()
-    stale = [name for name in generator.NOTEBOOKS if (NOTEBOOK_DIR / name).read_text(encoding="utf-8") != generator.render(name)]
-    assert not stale, f"regenerate with python notebooks/build_notebooks.py: {stale}"
+def _cells(nb) -> list[tuple[str, str]]:
+    return [(c.cell_type, c.source) for c in nb.cells]
+
+
+@pytest.mark.parametrize("source", SOURCES, ids=lambda p: p.stem)
+def test_notebook_matches_its_source(source):
+    paired = source.with_suffix(".ipynb")
+    script = jupytext.read(source)
+    notebook = nbformat.read(paired, as_version=4)
+    assert _cells(notebook) == _cells(script), f"{paired.name} differs from {source.name}: run jupytext --sync {source}"
+    assert notebook.metadata.get("jupytext", {}).get("formats") == "ipynb,py:percent"
+
+
+def test_the_source_check_can_fail(tmp_path):
+    # a notebook whose cell was edited without syncing is caught
+    source = SOURCES[0]
+    script = jupytext.read(source)
+    notebook = nbformat.read(source.with_suffix(".ipynb"), as_version=4)
+    notebook.cells[1].source += "\nprint('edited in the notebook only')"
+    assert _cells(notebook) != _cells(script)

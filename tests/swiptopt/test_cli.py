@@ -52,3 +52,50 @@ def test_unknown_preset_and_command_exit_2():
         result = run_cli(*args)
         assert result.returncode == 2
         assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_run_help_and_list_name_every_builtin_experiment(capsys):
+    from swiptopt.benchmark.experiment import builtin_experiments
+
+    builtins = builtin_experiments()
+    for args in (["run", "--help"], ["run", "--list"]):
+        assert main(args) == 0
+        out = capsys.readouterr().out
+        for name, experiment in builtins.items():
+            assert name in out, f"{args}: {name} not listed"
+    # --list prints exactly one line per experiment, name first, with its description
+    assert main(["run", "--list"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [line.split()[0] for line in lines] == list(builtins)
+    assert all(builtins[line.split()[0]].description in line for line in lines)
+
+
+def test_compare_help_describes_the_suite(capsys):
+    from swiptopt.benchmark.experiment import builtin_experiments
+
+    suite = builtin_experiments()["compare"]
+    assert main(["compare", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "standard suite" in out and f"{suite.layouts} node layouts" in out
+    assert all(name in out for name in suite.algorithms)
+
+
+@pytest.mark.parametrize(
+    "args, suggestion",
+    [
+        (("run", "fig-efficency-vs-nodes"), "fig-efficiency-vs-nodes"),
+        (("scenario", "show", "papr"), "paper"),
+    ],
+)
+def test_mistyped_names_suggest_the_closest(args, suggestion):
+    result = run_cli(*args)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"did you mean {suggestion!r}" in result.stderr
+
+
+def test_mistyped_algorithm_suggests_the_closest(tmp_path):
+    path = tmp_path / "e.toml"
+    path.write_text('name = "e"\n[algorithms.qlearning]\n')
+    result = run_cli("run", str(path))
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert "did you mean 'q_learning'" in result.stderr

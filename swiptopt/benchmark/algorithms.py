@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from swiptopt.errors import ConfigError
+from swiptopt.errors import ConfigError, did_you_mean
 
 
 @dataclass(frozen=True)
@@ -78,12 +78,17 @@ ALGORITHMS: dict[str, Algorithm] = {
 def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
     """The algorithm's defaults updated with ``settings``; unknown names and keys are errors."""
     if name not in ALGORITHMS:
-        raise ConfigError(f"unknown algorithm {name!r}: choose one of {', '.join(ALGORITHMS)}", "algorithm")
+        raise ConfigError(
+            f"unknown algorithm {name!r}{did_you_mean(name, ALGORITHMS)}: choose one of {', '.join(ALGORITHMS)}",
+            "algorithm",
+        )
     defaults = ALGORITHMS[name].defaults
     unknown = sorted(set(settings) - set(defaults))
     if unknown:
         raise ConfigError(
-            f"unknown setting {unknown[0]!r} for algorithm {name!r}; known: {', '.join(sorted(defaults))}", unknown[0]
+            f"unknown setting {unknown[0]!r}{did_you_mean(unknown[0], defaults)} for algorithm {name!r}; "
+            f"known: {', '.join(sorted(defaults))}",
+            unknown[0],
         )
     out = dict(defaults)
     out.update(settings)

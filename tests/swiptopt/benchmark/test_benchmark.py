@@ -10,10 +10,10 @@ import pytest
 
 from swiptopt.cli import main
 from swiptopt.errors import ConfigError
-from swiptopt.experiment import Experiment, builtin_experiments, load_experiment
-from swiptopt.runner import execute
-from swiptopt.store import ResultStore
-from swiptopt import tables
+from swiptopt.benchmark.experiment import Experiment, builtin_experiments, load_experiment
+from swiptopt.benchmark.runner import execute
+from swiptopt.benchmark.store import ResultStore
+from swiptopt.benchmark import tables
 
 QUICK_TOML = """
 name = "smoke"

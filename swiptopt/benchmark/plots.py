@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from swiptopt.experiment import Experiment
-from swiptopt.store import ResultStore
+from swiptopt.benchmark.experiment import Experiment
+from swiptopt.benchmark.store import ResultStore
 
 #: One column of a two-column paper, inches.
 COLUMN_WIDTH_IN = 3.5
@@ -62,7 +62,7 @@ def experiment_figure(experiment: Experiment, store: ResultStore, outdir: str | 
     """Metric against the sweep variable, one line per algorithm, 95 % CI error bars."""
     import matplotlib
 
-    from swiptopt import tables
+    from swiptopt.benchmark import tables
 
     outdir = Path(outdir)
     metric = experiment.figure.get("metric", "return")

@@ -42,8 +42,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from swiptopt.algorithms import ALGORITHMS, resolve_settings
-from swiptopt.errors import ConfigError
+from swiptopt.benchmark.algorithms import ALGORITHMS, resolve_settings
+from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.tomlfile import read_toml
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.scenario import Scenario, ScenarioError
@@ -139,7 +139,11 @@ class Experiment:
     def from_dict(cls, data: dict[str, Any]) -> Experiment:
         unknown = sorted(set(data) - TOP_KEYS)
         if unknown:
-            raise ConfigError(f"unknown experiment key {unknown[0]!r}; known: {', '.join(sorted(TOP_KEYS))}", unknown[0])
+            raise ConfigError(
+                f"unknown experiment key {unknown[0]!r}{did_you_mean(unknown[0], TOP_KEYS)}; "
+                f"known: {', '.join(sorted(TOP_KEYS))}",
+                unknown[0],
+            )
         for key in ("scenario", "sweep", "algorithms", "figure"):
             if key in data and not isinstance(data[key], dict):
                 raise ConfigError(f"[{key}] must be a table", key)
@@ -311,4 +315,8 @@ def load_experiment(spec: str) -> Experiment:
     path = Path(spec)
     if path.suffix.lower() == ".toml" or path.exists():
         return Experiment.from_toml(path)
-    raise ConfigError(f"{spec!r} is neither a built-in experiment ({', '.join(builtins)}) nor a .toml file", "experiment")
+    raise ConfigError(
+        f"{spec!r} is neither a built-in experiment{did_you_mean(spec, builtins)} ({', '.join(builtins)}) "
+        "nor a .toml file",
+        "experiment",
+    )

@@ -17,14 +17,14 @@ from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
 from swiptopt.errors import ConfigError
-from swiptopt.experiment import EVALUATION_OFFSET, Experiment, Task
-from swiptopt.store import ResultStore
+from swiptopt.benchmark.experiment import EVALUATION_OFFSET, Experiment, Task
+from swiptopt.benchmark.store import ResultStore
 
 
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
     """Run one task (a :meth:`Task.to_dict`); returns its result for the store."""
     from planners.bounds import exact_optimum, upper_bound
-    from swiptopt.algorithms import build_policy
+    from swiptopt.benchmark.algorithms import build_policy
     from swiptopt.env import AuvSwiptEnv
     from swiptopt.evaluation import evaluate
     from swiptopt.scenario import Scenario

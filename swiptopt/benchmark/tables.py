@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from swiptopt.algorithms import labels
+from swiptopt.benchmark.algorithms import labels
 from swiptopt.evaluation import Summary
-from swiptopt.experiment import Experiment
+from swiptopt.benchmark.experiment import Experiment
 from swiptopt.metrics import EPISODE_METRICS
-from swiptopt.store import ResultStore
+from swiptopt.benchmark.store import ResultStore
 
 #: Extra columns beyond the episode metrics.
 GAP_BOUND = "gap_to_bound"
