@@ -103,24 +103,30 @@ def noise_level_db(
     wind_mps: ArrayLike = 0.0,
     *,
     integrate: bool = False,
+    band_khz: tuple[ArrayLike, ArrayLike] | None = None,
     n_points: int = 201,
 ) -> np.ndarray:
-    """Noise level in the receiver band, dB re 1 uPa (paper eq. 8).
+    """Noise level in the receiver band, dB re 1 uPa (paper eq. 8 and eq. 22's N_0(f) B).
 
-    By default the flat-band approximation ``NL = N(fc) + 10 log10(B)``. With
-    ``integrate=True`` the PSD is integrated (trapezoid rule, ``n_points`` samples) over
-    ``[fc - B/2, fc + B/2]``, which matters when the band is wide compared with ``fc``.
+    By default the flat-band approximation ``NL = N(fc) + 10 log10(B)``, the paper's noise
+    power ``N_0(f) B``. With ``integrate=True`` the PSD is integrated (trapezoid rule,
+    ``n_points`` samples) over the band ``band_khz = (f_min, f_max)``, which matters when
+    the band is wide compared with ``fc`` or the carrier is off the band's centre; without
+    ``band_khz`` the band is taken as ``[fc - B/2, fc + B/2]``.
     """
     fc = _positive("freq_khz", freq_khz)
     bw = _positive("bandwidth_hz", bandwidth_hz)
     if not integrate:
         return noise_psd_db(fc, shipping, wind_mps) + 10.0 * np.log10(bw)
-    fc, bw, s, w = np.broadcast_arrays(fc, bw, np.asarray(shipping, float), np.asarray(wind_mps, float))
-    half_khz = bw / 2000.0
-    if np.any(fc - half_khz <= 0):
-        raise ValueError("the band [fc - B/2, fc + B/2] must lie above 0 kHz")
-    u = np.linspace(-1.0, 1.0, n_points)
-    f = fc[..., None] + half_khz[..., None] * u  # (..., n_points), kHz
+    if band_khz is None:
+        low, high = fc - bw / 2000.0, fc + bw / 2000.0
+    else:
+        low, high = (np.asarray(edge, dtype=float) for edge in band_khz)
+    low, high, s, w = np.broadcast_arrays(low, high, np.asarray(shipping, float), np.asarray(wind_mps, float))
+    if np.any(low <= 0) or np.any(high <= low):
+        raise ValueError(f"the band must satisfy 0 < f_min < f_max, got [{low}, {high}] kHz")
+    u = np.linspace(0.0, 1.0, n_points)
+    f = low[..., None] + (high - low)[..., None] * u  # (..., n_points), kHz
     psd_lin = 10.0 ** (noise_psd_db(f, s[..., None], w[..., None]) / 10.0)
     power = np.trapezoid(psd_lin, f * 1000.0, axis=-1)  # uPa^2
     return 10.0 * np.log10(power)

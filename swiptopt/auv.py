@@ -26,10 +26,16 @@ def drag_force_n(
     drag_coefficient: float = DEFAULT_DRAG_COEFFICIENT,
     frontal_area_m2: float = DEFAULT_FRONTAL_AREA_M2,
     water_density_kg_m3: float = DEFAULT_WATER_DENSITY_KG_M3,
+    propulsion_efficiency: float = DEFAULT_PROPULSION_EFFICIENCY,
 ) -> np.ndarray:
-    """Hydrodynamic drag D = 1/2 C_D A rho_w v^2, N (paper eq. 14), v relative to the water."""
+    """Drag as the paper writes it, D = 1/2 C_D A rho_w v^2 / beta, N (paper eq. 17).
+
+    ``v`` is relative to the water. The paper folds the motor's conversion factor beta into
+    the drag so that the propulsion power is simply D v (eqs. 16, 18); the hydrodynamic force
+    alone is this value times beta.
+    """
     v = np.asarray(water_speed_mps, dtype=float)
-    return 0.5 * drag_coefficient * frontal_area_m2 * water_density_kg_m3 * v**2
+    return 0.5 * drag_coefficient * frontal_area_m2 * water_density_kg_m3 * v**2 / propulsion_efficiency
 
 
 def propulsion_power_w(
@@ -39,9 +45,9 @@ def propulsion_power_w(
     water_density_kg_m3: float = DEFAULT_WATER_DENSITY_KG_M3,
     propulsion_efficiency: float = DEFAULT_PROPULSION_EFFICIENCY,
 ) -> np.ndarray:
-    """Electrical propulsion power P = D v / beta = 1/2 C_D A rho_w v^3 / beta, W (eq. 15)."""
+    """Electrical propulsion power P_prop = D v = 1/2 C_D A rho_w v^3 / beta, W (paper eqs. 16, 18)."""
     v = np.abs(np.asarray(water_speed_mps, dtype=float))
-    return drag_force_n(v, drag_coefficient, frontal_area_m2, water_density_kg_m3) * v / propulsion_efficiency
+    return drag_force_n(v, drag_coefficient, frontal_area_m2, water_density_kg_m3, propulsion_efficiency) * v
 
 
 def water_relative_speed_mps(

@@ -62,6 +62,7 @@ def noise_level_db(scenario: Scenario) -> float:
             scenario.shipping,
             scenario.wind_mps,
             integrate=scenario.noise_integrated,
+            band_khz=(scenario.band_min_khz, scenario.band_max_khz),
         )
     )
 

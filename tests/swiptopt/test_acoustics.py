@@ -75,6 +75,32 @@ def test_noise_level_flat_and_integrated():
     assert wide > ac.noise_level_db(2.0, 3000.0, 0.5, 5.0) + 0.1
 
 
+def _noise_power_by_quadrature(f_min_khz, f_max_khz, shipping, wind_mps):
+    # an independent reference: Gauss-Legendre over the band, in uPa^2
+    nodes, weights = np.polynomial.legendre.leggauss(64)
+    f = 0.5 * (f_max_khz - f_min_khz) * nodes + 0.5 * (f_max_khz + f_min_khz)
+    psd = 10.0 ** (ac.noise_psd_db(f, shipping, wind_mps) / 10.0)
+    return 10 * math.log10(0.5 * (f_max_khz - f_min_khz) * 1000.0 * float(weights @ psd))
+
+
+def test_integrated_noise_covers_the_band_edges_not_the_centre():
+    # the model integrates over [f_min, f_max]; with the carrier off the band's centre that
+    # is not [fc - B/2, fc + B/2]
+    band = (3.0, 9.0)
+    integrated = ac.noise_level_db(4.0, 6000.0, 0.5, 5.0, integrate=True, band_khz=band)
+    assert integrated == pytest.approx(_noise_power_by_quadrature(*band, 0.5, 5.0), abs=1e-3)
+    centred = ac.noise_level_db(4.0, 6000.0, 0.5, 5.0, integrate=True)  # [1, 7] kHz: noisier
+    assert abs(integrated - centred) > 1.0
+
+
+def test_scenario_noise_integrates_over_its_band():
+    from swiptopt import Scenario
+    from swiptopt.link import noise_level_db
+
+    s = Scenario.preset("paper", noise_integrated=True, frequency_khz=23.0)  # band 22-26 kHz
+    assert noise_level_db(s) == pytest.approx(_noise_power_by_quadrature(22.0, 26.0, 0.0, 10.0), abs=1e-3)
+
+
 @pytest.mark.parametrize("bad", [0.0, -1.0, np.nan])
 def test_non_positive_frequency_rejected(bad):
     with pytest.raises(ValueError, match="freq_khz"):

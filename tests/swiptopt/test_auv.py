@@ -8,7 +8,10 @@ def test_defaults_give_the_hand_computed_powers():
     expected = 0.5 * 0.3 * 0.028 * 1025.0 * 1.5**3 / 0.5
     assert auv.propulsion_power_w(1.5) == pytest.approx(expected)
     assert expected == pytest.approx(29.05875)
-    assert auv.drag_force_n(1.5) == pytest.approx(0.5 * 0.3 * 0.028 * 1025.0 * 2.25)
+    # the paper's eq. 17 divides the drag by beta (0.5 by default), so that P_prop = D v (eq. 18)
+    assert auv.drag_force_n(1.5) == pytest.approx(0.5 * 0.3 * 0.028 * 1025.0 * 2.25 / 0.5)
+    assert auv.drag_force_n(1.5) * 1.5 == pytest.approx(auv.propulsion_power_w(1.5))
+    assert auv.drag_force_n(1.5, propulsion_efficiency=0.25) == pytest.approx(2 * auv.drag_force_n(1.5))
 
 
 def test_move_and_hover_energy():
