@@ -363,3 +363,18 @@ def test_latex_escape_maps_each_special_character():
         r"\textbackslash{}\{\}\$\&\#\%\_\textasciicircum{}\textasciitilde{}"
     )
     assert tables.latex_escape("1.5 ± 0.2, 2×, 1–2, é\nx") == r"1.5 $\pm$ 0.2, 2$\times$, 1--2, é x"
+
+
+def test_a_run_on_a_walled_volume_completes_for_every_planner(tmp_path):
+    path = tmp_path / "wall.toml"
+    path.write_text(
+        'name = "wall"\nlayouts = 1\nepisodes = 1\n[scenario]\npreset = "paper"\nn_nodes = 12\n'
+        '[[scenario.obstacles]]\nkind = "box"\nmin_m = [60, 0, 0]\nmax_m = [70, 100, 50]\n'
+        "[algorithms.kmeans_tsp]\ntsp_time_limit_s = 0.2\n[algorithms.lawnmower]\n[algorithms.greedy]\n"
+    )
+    exp = Experiment.from_toml(path)
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        report = execute(exp, store, workers=1)
+        assert report.ran == 3 and store.count() == 3
+        rows, missing = tables.aggregate(exp, store)
+    assert missing == 0 and all(r.summaries["data_bits"].mean > 0 for r in rows)
