@@ -3,7 +3,8 @@
 A :class:`Scenario` holds every parameter of SPEC 3.4 as a flat set of named fields (so
 presets, overrides, TOML files and ``gymnasium.make`` keyword arguments all speak the same
 names). A wrong value fails at construction with a :class:`ScenarioError` that names the
-field, the value and what is allowed. Node positions, initial charges and link failure
+field, the value and what is allowed; a grid too big to simulate (see :mod:`swiptopt.limits`)
+fails before any cell is allocated. Node positions, initial charges and link failure
 probabilities are drawn from ``layout_seed`` alone, so one scenario is one layout.
 
 Coordinates: x along ``length_m``, y along ``width_m``, z is depth (0 at the surface,

@@ -4,7 +4,12 @@ An experiment expands into tasks, one per (scenario, algorithm, seed); a task's 
 hash of its fully resolved configuration (every scenario field, every algorithm setting,
 the seed, the episode count), so the results store recognises finished work whatever file
 or command produced it. Experiments are validated like scenarios: unknown keys, wrong
-types and out-of-range values are errors that name the key.
+types and out-of-range values are errors that name the key. All of it is checked when an
+:class:`Experiment` is built, so nothing runs before the check: every algorithm setting
+against the algorithm's schema (:mod:`swiptopt.benchmark.algorithms`), every sweep point's
+scenario, sweep values that would repeat a point, the name (it names files, so letters,
+digits, ``-``, ``_`` and ``.`` only), and the sizes of :mod:`swiptopt.limits` (tasks and
+evaluation episodes, and each scenario's grid).
 
 File format::
 

@@ -310,17 +310,28 @@ def test_figure_files_never_leave_the_output_directory(tmp_path):
     assert plots._output_path(tmp_path, "ok.png") == tmp_path / "ok.png"
 
 
-def test_plot_refuses_a_stored_experiment_named_to_escape(tmp_path):
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ('"name": "t"', '"name": "../evil"', ["name = '../evil'"]),
+        ('"name": "t"', '"name": "/tmp/evil"', ["name = '/tmp/evil'"]),
+        ('"figure": {"metric": "return"}', '"figure": {"metric": "return", "x": "split_ratio"}',
+         ["figure.x = 'split_ratio' is not swept"]),
+        ('"sweep": {"n_nodes": [2, 3]}', '"sweep": {}', ["[figure] needs a [sweep]"]),
+    ],
+)
+def test_plot_refuses_a_stored_experiment_it_cannot_draw_safely(tmp_path, old, new, words):
     _, store = run_small(tmp_path / "run", sweep={"n_nodes": [2, 3]}, figure={"metric": "return"})
     store.close()
     store_path = tmp_path / "run" / "r.sqlite"
     with sqlite3.connect(store_path) as db:  # a store written by hand or by an old version
-        changed = db.execute("UPDATE runs SET config = replace(config, '\"name\": \"t\"', '\"name\": \"../evil\"')")
-        assert changed.rowcount == 1
+        assert db.execute("UPDATE runs SET config = replace(config, ?, ?)", (old, new)).rowcount == 1
+        assert new in db.execute("SELECT config FROM runs").fetchone()[0]
     outdir = tmp_path / "out" / "fig"
     line = one_line(cli("plot", str(store_path), "--outdir", str(outdir)))
-    assert "'../evil'" in line
-    assert not any(p.name.startswith("evil") for p in tmp_path.rglob("*"))
+    for word in words:
+        assert word in line
+    assert not any(p.name.startswith(("evil", "t.")) for p in tmp_path.rglob("*"))
 
 
 def latex_rows(text):
