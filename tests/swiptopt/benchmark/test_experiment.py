@@ -1,12 +1,15 @@
 """Experiments refuse bad input before any task runs: settings, sweeps, names, sizes, files;
 and what they write (figures, LaTeX) stays where and what it should be."""
 
+import math
 import os
 import sqlite3
 import subprocess
 import sys
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from planners.policies import TOUR_COSTS
 from planners.tsp import METHODS
@@ -88,6 +91,22 @@ def test_every_bad_setting_fails_at_construction_naming_the_experiment_key(name,
         message = str(info.value)
         assert f"algorithms.{name}.{key}" in message and repr(value) in message.replace(",", "")
         assert "\n" not in message
+
+
+NUMERIC = [(n, k) for n, k in SETTINGS if ALGORITHMS[n].settings[k].kind in ("int", "float")]
+
+
+@pytest.mark.parametrize("name, key", NUMERIC)
+@given(value=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-(10**12), 10**12)))
+def test_numeric_settings_accept_exactly_their_range(name, key, value):
+    spec = ALGORITHMS[name].settings[key]
+    upper = spec.upper()
+    ok = math.isfinite(value) and spec.in_range(value, upper) and (spec.kind == "float" or float(value).is_integer())
+    if ok:
+        assert resolve_settings(name, {key: value})[key] == value
+    else:
+        with pytest.raises(ConfigError, match=f"algorithms.{name}.{key}"):
+            resolve_settings(name, {key: value})
 
 
 def test_schema_agrees_with_what_the_algorithms_accept():
