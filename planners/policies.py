@@ -7,10 +7,17 @@ steps); the AUV moves between stops along shortest 6-connected grid paths (which
 obstacles) and hovers at each stop. ``begin_episode`` hands the planner the unwrapped
 environment, whose state it reads to react: it lingers while covered nodes still hold data
 (a link failure delayed them) and skips stops whose nodes are already served.
+
+A planner plans only over the cells the AUV can reach from its start cell (obstacles may
+wall part of the volume off, or box the start in): nodes covered only from cells it cannot
+reach, and survey stops it cannot reach, are skipped and listed in the plan's ``details``
+(``unreachable_nodes``, ``unreachable_stops``) with the reason in its ``status``. The planner
+still serves what it can reach, and hovers when that is nothing.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,8 +50,54 @@ class Plan:
 
     stops: list[Stop]
     status: str = "ok"
-    """How the plan was made, e.g. which solver statuses it rests on."""
+    """How the plan was made, e.g. which solver statuses it rests on, and what it skipped."""
     details: dict[str, Any] = field(default_factory=dict)
+
+
+UNREACHABLE = "unreachable from the start cell"
+
+
+@dataclass(frozen=True, eq=False)
+class Reach:
+    """What the AUV can reach from its start cell, and what that leaves out."""
+
+    cells: np.ndarray
+    """(n_cells,) bool: cells a path of moves leads to from the start cell."""
+    tables: K.Tables
+    """The kernel tables with coverage from reachable cells only."""
+    unreachable_nodes: np.ndarray
+    """Nodes some cell covers, but only cells the AUV cannot reach."""
+
+
+def reachable(tables: K.Tables) -> Reach:
+    """The cells reachable from ``tables.start_cell`` through the kernel's own moves, and the
+    tables restricted to them (the coverage of every other cell removed)."""
+    dist, _ = bfs_distances(tables.next_cell, tables.start_cell)
+    cells = dist >= 0
+    counts = np.diff(tables.cov_ptr)
+    keep = np.repeat(cells, counts)
+    cov_ptr = np.zeros_like(tables.cov_ptr)
+    np.cumsum(np.where(cells, counts, 0), out=cov_ptr[1:])
+    reachable = dataclasses.replace(
+        tables, cov_ptr=cov_ptr, cov_node=tables.cov_node[keep], cov_snr=tables.cov_snr[keep],
+        cov_pav=tables.cov_pav[keep],
+    )
+    lost = np.setdiff1d(np.unique(tables.cov_node), np.unique(reachable.cov_node))
+    return Reach(cells, reachable, lost)
+
+
+def _with_reach(plan: Plan, where: Reach, unreachable_stops: list[int] | None = None) -> Plan:
+    """``plan`` with what ``where`` left out recorded in its details and status."""
+    skipped = []
+    if where.unreachable_nodes.size:
+        plan.details["unreachable_nodes"] = [int(i) for i in where.unreachable_nodes]
+        skipped.append(f"{where.unreachable_nodes.size} nodes")
+    if unreachable_stops:
+        plan.details["unreachable_stops"] = unreachable_stops
+        skipped.append(f"{len(unreachable_stops)} stops")
+    if skipped:
+        plan.status += f"; skipped {' and '.join(skipped)} {UNREACHABLE}"
+    return plan
 
 
 class _Executor:
@@ -71,15 +124,14 @@ class _Executor:
         self._served_steps = 0
         self._lingered = 0
 
-    def _toward(self, cell: int, target: int) -> int:
+    def _toward(self, cell: int, target: int) -> int | None:
+        """The first move of a shortest path from ``cell`` to ``target`` (None: no path)."""
         tree = self._trees.get(target)
         if tree is None:
             _, tree = bfs_distances(self._env.tables.next_cell, target)
             self._trees[target] = tree
         via = tree[0, cell]
-        if via < 0:
-            raise ValueError(f"cell {target} cannot be reached from cell {cell}")
-        return int(_REVERSE[via])
+        return None if via < 0 else int(_REVERSE[via])
 
     def _pending_here(self, cell: int) -> bool:
         """Whether a node covered from ``cell`` still holds data."""
@@ -99,10 +151,13 @@ class _Executor:
         while self._stop < len(stops):
             stop = stops[self._stop]
             if cell != stop.cell:
-                if self._served_steps == 0 and not self._needs_service(stop.cell):
-                    self._stop += 1  # nothing left to do there
+                move = self._toward(cell, stop.cell)
+                if move is None or (self._served_steps == 0 and not self._needs_service(stop.cell)):
+                    self._stop += 1  # nothing left to do there, or no way there
+                    self._served_steps = 0
+                    self._lingered = 0
                     continue
-                return self._toward(cell, stop.cell)
+                return move
             if self._served_steps == 0:
                 self._served_steps = 1  # the arrival step served
             if self._served_steps < stop.steps:
@@ -161,10 +216,14 @@ class KMeansTspPlanner(_Executor):
         from planners.tsp import solve_tsp
 
         scenario = _scenario_of(env)
-        tables = env.tables
-        hover = kmeans_hover_points(scenario, self.k, rng=self.seed, tables=tables)
-        if hover.k == 0:
-            return Plan([], status="no coverable nodes")
+        where = reachable(env.tables)
+        tables = where.tables
+        # k above the nodes left to group (some may be out of reach) is capped there
+        n_coverable = np.unique(tables.cov_node).size
+        k = None if self.k is None else min(self.k, n_coverable)
+        if n_coverable == 0:
+            return _with_reach(Plan([], status="no coverable nodes"), where)
+        hover = kmeans_hover_points(scenario, k, rng=self.seed, tables=tables)
         start = tables.start_cell
         cells = [start] + [int(c) for c in hover.cells]
         centres = scenario.cell_centers_m[cells]
@@ -195,7 +254,7 @@ class KMeansTspPlanner(_Executor):
             keep -= 1
         order, moves = order[:keep], moves[:keep]
         if not order:
-            return Plan([], status="no stop within the episode")
+            return _with_reach(Plan([], status="no stop within the episode"), where)
         service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
 
         snr, p_av = hover_link(scenario, np.asarray(order), tables)
@@ -221,12 +280,13 @@ class KMeansTspPlanner(_Executor):
             wanted = np.full(len(order), service_steps / len(order))
         dwell = _integer_steps(wanted, service_steps)
         stops = [Stop(c, int(d)) for c, d in zip(order, dwell)]
-        return Plan(
+        plan = Plan(
             stops,
             status=f"tsp {tour.status}, dwell {result.status}",
             details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": sum(moves),
                      "tour_costs": kind, "power_split": result},
         )
+        return _with_reach(plan, where)
 
     def _ompl_costs(self, scenario: Scenario, cells: list[int], next_cell: np.ndarray) -> np.ndarray:
         """OMPL path lengths between the stops; where OMPL finds no exact path in its time
@@ -282,14 +342,18 @@ class LawnmowerPlanner(_Executor):
             spacing = max(1, int(2 * radius // scenario.cell_size_m))
         lanes = list(range(min(spacing // 2, ny - 1), ny, spacing))
         free = ~scenario.blocked_cells
-        stops = []
+        where = reachable(env.tables)
+        stops, unreachable = [], []
         for n, j in enumerate(lanes):
             xs = range(nx) if n % 2 == 0 else range(nx - 1, -1, -1)
             for i in xs:
                 c = int(scenario.cell_index((i, j, self.depth_cell)))
-                if free[c]:
+                if free[c] and where.cells[c]:
                     stops.append(Stop(c, 1))
-        return Plan(stops, details={"lane_spacing_cells": spacing, "lanes": lanes})
+                elif free[c]:
+                    unreachable.append(c)
+        plan = Plan(stops, details={"lane_spacing_cells": spacing, "lanes": lanes})
+        return _with_reach(plan, where, unreachable)
 
     def _needs_service(self, cell: int) -> bool:
         return True  # a survey visits every waypoint
@@ -306,10 +370,11 @@ class GreedyPlanner(_Executor):
         self.max_dwell_steps = max_dwell_steps
 
     def make_plan(self, env: Any) -> Plan:
-        covered, power = coverage_tables(_scenario_of(env), env.tables)
-        # each node's best hover cell: the covering cell with the most received power
+        where = reachable(env.tables)
+        covered, power = coverage_tables(_scenario_of(env), where.tables)
+        # each node's best hover cell: the reachable covering cell with the most received power
         self._best_cell = np.where(covered.any(axis=0), np.argmax(np.where(covered, power, -1.0), axis=0), -1)
-        return Plan([], status="online")
+        return _with_reach(Plan([], status="online"), where)
 
     def begin_episode(self, env: Any, obs: Any = None, info: Any = None) -> None:
         super().begin_episode(env, obs, info)
@@ -343,6 +408,11 @@ class GreedyPlanner(_Executor):
             self._target, self._dwell = best, 0
         target_cell = int(self._best_cell[self._target])
         if cell != target_cell:
-            return self._toward(cell, target_cell)
+            move = self._toward(cell, target_cell)
+            if move is not None:
+                return move
+            self._given_up.add(self._target)  # no way there (the plan keeps to reachable cells)
+            self._target = -1
+            return K.HOVER
         self._dwell += 1
         return K.HOVER

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -156,19 +157,92 @@ class _TabularAgent:
 
     @classmethod
     def load(cls, path: str | Path) -> _TabularAgent:
-        """Load an agent saved by :meth:`save`; the file must hold this class's algorithm."""
-        with np.load(Path(path), allow_pickle=False) as data:
-            algorithm = str(data["algorithm"])
-            if algorithm != cls.algorithm:
-                raise ConfigError(f"{path} holds a {algorithm!r} agent, not {cls.algorithm!r}", "path")
-            q = data["q_table"]
-            seed = int(data["seed"])
-            config = TabularConfig(**json.loads(str(data["config"])))
-            agent = cls(q.shape[0], q.shape[1], config=config, seed=None if seed < 0 else seed)
-            agent.q_table_ = q.copy()
-            agent.epsilon_ = float(data["epsilon"])
-            agent.rng_.bit_generator.state = json.loads(str(data["rng_state"]))
+        """Load an agent saved by :meth:`save`; the file must hold this class's algorithm.
+
+        Anything else (a missing or unreadable file, not an ``.npz`` archive, a truncated
+        one, a missing array, an array of the wrong shape or type, an unknown setting) is one
+        :class:`ConfigError` naming the file and the problem.
+        """
+        path = Path(path)
+        try:
+            data = np.load(path, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):
+                raise _BadAgentFile("it holds a single array, not an .npz archive")
+            with data:
+                missing = sorted(set(_SAVED) - set(data.files))
+                if missing:
+                    raise _BadAgentFile(f"it lacks the array {missing[0]!r} (an agent file holds {', '.join(_SAVED)})")
+                arrays = {name: data[name] for name in _SAVED}
+        except _BadAgentFile as exc:
+            raise ConfigError(f"{path}: not a saved agent: {exc}", "path") from None
+        except FileNotFoundError:
+            raise ConfigError(f"{path}: no such agent file", "path") from None
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read the agent file: {exc.strerror or exc}", "path") from None
+        except (ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+            # np.load's ways of saying "not an array file", a truncated or corrupt archive
+            raise ConfigError(f"{path}: not a saved agent (.npz): {_first_line(exc)}", "path") from None
+        try:
+            return cls._from_arrays(arrays)
+        except _BadAgentFile as exc:
+            raise ConfigError(f"{path}: not a saved agent: {exc}", "path") from None
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}", exc.field) from None
+
+    @classmethod
+    def _from_arrays(cls, arrays: dict[str, np.ndarray]) -> _TabularAgent:
+        algorithm = _scalar(arrays, "algorithm", np.str_)
+        if algorithm != cls.algorithm:
+            raise ConfigError(f"it holds a {algorithm!r} agent, not {cls.algorithm!r}", "path")
+        q = arrays["q_table"]
+        if q.ndim != 2 or q.shape[0] < 1 or q.shape[1] < 1 or q.dtype.kind != "f":
+            raise _BadAgentFile(f"q_table must be a 2-D float array (states, actions), got {q.ndim}-D {q.dtype}")
+        if not np.all(np.isfinite(q)):
+            raise _BadAgentFile("q_table holds values that are not finite")
+        seed = int(_scalar(arrays, "seed", np.integer))
+        epsilon = float(_scalar(arrays, "epsilon", np.floating))
+        if not 0.0 <= epsilon <= 1.0:
+            raise _BadAgentFile(f"epsilon = {epsilon!r} must lie in [0, 1]")
+        config = _json(arrays, "config")
+        if not isinstance(config, dict):
+            raise _BadAgentFile("config must be a JSON object of agent settings")
+        agent = cls(q.shape[0], q.shape[1], config=TabularConfig().replace(**config), seed=None if seed < 0 else seed)
+        agent.q_table_ = np.array(q, dtype=float)
+        agent.epsilon_ = epsilon
+        state = _json(arrays, "rng_state")
+        try:
+            agent.rng_.bit_generator.state = state
+        except (TypeError, ValueError, KeyError) as exc:
+            raise _BadAgentFile(f"rng_state is not a state of {type(agent.rng_.bit_generator).__name__}: {_first_line(exc)}") from None
         return agent
+
+
+#: The arrays :meth:`_TabularAgent.save` writes.
+_SAVED = ("algorithm", "q_table", "epsilon", "config", "rng_state", "seed")
+
+
+class _BadAgentFile(Exception):
+    """A file that is an archive but not one :meth:`_TabularAgent.save` wrote."""
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _scalar(arrays: dict[str, np.ndarray], name: str, kind: type) -> Any:
+    value = arrays[name]
+    if value.shape != () or not np.issubdtype(value.dtype, kind):
+        raise _BadAgentFile(f"{name} must be a single {kind.__name__.strip('_')}, got shape {value.shape} {value.dtype}")
+    return value[()]
+
+
+def _json(arrays: dict[str, np.ndarray], name: str) -> Any:
+    text = _scalar(arrays, name, np.str_)
+    try:
+        return json.loads(str(text))
+    except ValueError as exc:
+        raise _BadAgentFile(f"{name} is not valid JSON: {_first_line(exc)}") from None
 
 
 class QLearningAgent(_TabularAgent):

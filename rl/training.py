@@ -19,6 +19,7 @@ from rl import core
 from rl.agents import RandomAgent, _TabularAgent
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
+from swiptopt.limits import check_size, training_log_note
 
 BACKENDS = ("python", "compiled")
 
@@ -72,6 +73,7 @@ def train(
         raise ConfigError(f"episodes = {episodes!r} must be a non-negative integer", "episodes")
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend {backend!r}: choose one of {BACKENDS}", "backend")
+    check_size("max_training_episodes", int(episodes), "episodes", "episodes", note=training_log_note(int(episodes)))
     log = np.zeros((int(episodes), len(LOG_COLUMNS)))
     if backend == "python":
         _train_python(agent, env, int(episodes), seed, log)

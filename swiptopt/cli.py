@@ -231,8 +231,9 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
             if quick:
                 experiment = experiment.quick()
             report = execute(experiment, store, workers=workers, scheduler=scheduler)
-            paths = plots.experiment_figure(experiment, store, outdir)
-            console.print(f"{name}: {report.ran} run, {report.cached} stored -> {', '.join(map(str, paths))}")
+            figure = plots.experiment_figure(experiment, store, outdir)
+            drawn = ", ".join(map(str, figure.paths)) or f"no figure: {figure.skipped}"
+            console.print(f"{name}: {report.ran} run, {report.cached} stored -> {drawn}")
 
 
 @cli.command()
@@ -266,10 +267,14 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
         drawn = []
         for r in store.runs():
             experiment = Experiment(**r["config"])
-            if experiment.figure:
-                drawn += plots.experiment_figure(experiment, store, outdir)
+            if not experiment.figure:
+                continue
+            figure = plots.experiment_figure(experiment, store, outdir)
+            if figure.skipped:
+                click.echo(f"{experiment.name}: no figure: {figure.skipped}", err=True)
+            drawn += figure.paths
     if not drawn:
-        raise ConfigError(f"no experiment with a [figure] in {store_path}", "figure")
+        raise ConfigError(f"no figure to draw from {store_path}", "figure")
     click.echo("\n".join(map(str, drawn)))
 
 

@@ -3,7 +3,8 @@
 A :class:`Scenario` holds every parameter of SPEC 3.4 as a flat set of named fields (so
 presets, overrides, TOML files and ``gymnasium.make`` keyword arguments all speak the same
 names). A wrong value fails at construction with a :class:`ScenarioError` that names the
-field, the value and what is allowed. Node positions, initial charges and link failure
+field, the value and what is allowed; a grid too big to simulate (see :mod:`swiptopt.limits`)
+fails before any cell is allocated. Node positions, initial charges and link failure
 probabilities are drawn from ``layout_seed`` alone, so one scenario is one layout.
 
 Coordinates: x along ``length_m``, y along ``width_m``, z is depth (0 at the surface,
@@ -14,7 +15,6 @@ growing downwards to ``depth_m``). The AUV sits at cell centres of a grid of
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -24,7 +24,9 @@ import numpy as np
 
 from swiptopt.acoustics import THORP_VALID_KHZ
 from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.limits import check_size
 from swiptopt.tomlfile import read_toml
+from swiptopt.validation import Spec, check_keys, check_value
 
 
 
@@ -116,13 +118,11 @@ def _obstacle_to_mapping(obstacle: Obstacle) -> dict[str, Any]:
 # ----------------------------------------------------------------------- value checks
 
 
+_ANY_NUMBER = Spec()
+
+
 def _number(name: str, value: Any, field_name: str | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ScenarioError(f"{name} = {value!r} must be a number", field_name or name)
-    value = float(value)
-    if not math.isfinite(value):
-        raise ScenarioError(f"{name} = {value!r} must be finite", field_name or name)
-    return value
+    return check_value(name, value, _ANY_NUMBER, field=field_name, error=ScenarioError)
 
 
 def _vector(name: str, value: Any, length: int, field_name: str | None = None) -> tuple[float, ...]:
@@ -131,40 +131,9 @@ def _vector(name: str, value: Any, length: int, field_name: str | None = None) -
     return tuple(_number(name, v, field_name or name) for v in value)
 
 
-@dataclass(frozen=True)
-class _Spec:
-    """How one scenario field is checked and shown."""
-
-    unit: str = ""
-    doc: str = ""
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    hi_open: bool = False
-    kind: str = "float"  # float | int | str | bool | vector3 | cell | positions | heightmap | obstacles
-    choices: tuple[str, ...] = ()
-    optional: bool = False  # None is allowed and means "derive a default"
-
-    def allowed(self) -> str:
-        if self.choices:
-            return "one of " + ", ".join(repr(c) for c in self.choices)
-        lo = "-inf" if self.lo is None else f"{self.lo:g}"
-        hi = "inf" if self.hi is None else f"{self.hi:g}"
-        left = "(" if self.lo_open or self.lo is None else "["
-        right = ")" if self.hi_open or self.hi is None else "]"
-        what = "an integer" if self.kind == "int" else "a number"
-        return f"{what} in {left}{lo}, {hi}{right}"
-
-    def in_range(self, x: float) -> bool:
-        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
-            return False
-        if self.hi is not None and (x > self.hi or (self.hi_open and x == self.hi)):
-            return False
-        return True
-
-
 def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
-    return field(default=default, metadata={"spec": _Spec(unit=unit, doc=doc, **spec)})
+    # kinds beyond validation's scalars: vector3 | cell | positions | heightmap | obstacles
+    return field(default=default, metadata={"spec": Spec(unit=unit, doc=doc, **spec)})
 
 
 CHANNELS = ("none", "shadowing", "rician")
@@ -271,7 +240,7 @@ class Scenario:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            spec: _Spec = f.metadata["spec"]
+            spec: Spec = f.metadata["spec"]
             object.__setattr__(self, f.name, _check_field(f.name, getattr(self, f.name), spec))
         self._check_relations()
 
@@ -284,6 +253,18 @@ class Scenario:
                     f"{self.cell_size_m:g}",
                     axis,
                 )
+        # sizes first: everything below may allocate per cell
+        nx, ny, nz = self.grid_shape
+        check_size(
+            "max_cells", self.n_cells,
+            f"grid cells at cell_size_m = {self.cell_size_m:g} ({nx:,} x {ny:,} x {nz:,})", "cell_size_m",
+            ScenarioError,
+        )
+        check_size(
+            "max_cell_node_pairs", self.n_cells * self.n_nodes,
+            f"grid cells x nodes in the coverage tables ({self.n_cells:,} x n_nodes = {self.n_nodes:,})", "n_nodes",
+            ScenarioError,
+        )
         if not self.band_min_khz < self.frequency_khz < self.band_max_khz:
             raise ScenarioError(
                 f"frequency_khz = {self.frequency_khz:g} must lie inside the band "
@@ -332,20 +313,24 @@ class Scenario:
     # ------------------------------------------------------------------ construction
 
     @classmethod
-    def preset(cls, name: str, **overrides: Any) -> Scenario:
-        """A named preset (``paper``, ``harbour``, ``tiny``) with field overrides."""
-        if name not in PRESETS:
+    def preset(cls, preset: str, /, **overrides: Any) -> Scenario:
+        """A named preset (``paper``, ``harbour``, ``tiny``) with field overrides.
+
+        The scenario's ``name`` is the preset's unless ``name=`` gives a label of its own.
+        """
+        if not isinstance(preset, str) or preset not in PRESETS:
             raise ScenarioError(
-                f"unknown preset {name!r}{did_you_mean(name, PRESETS)}: choose one of {sorted(PRESETS)}", "preset"
+                f"unknown preset {preset!r}{did_you_mean(preset, PRESETS)}: choose one of {sorted(PRESETS)}", "preset"
             )
-        values = {"name": name, **PRESETS[name]}
+        values = {"name": preset, **PRESETS[preset]}
         values.update(overrides)
         return cls.from_dict(values)
 
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> Scenario:
-        """Build from a mapping of field names; a ``preset`` key starts from that preset."""
-        values = dict(values)
+        """Build from a mapping of field names; a ``preset`` key starts from that preset
+        (and a ``name`` key labels the result, whether or not it starts from a preset)."""
+        values = check_keys("a scenario", values, "scenario", ScenarioError)
         preset = values.pop("preset", None)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - names)
@@ -536,22 +521,12 @@ def _uniform_free_points(scenario: Scenario, n: int, rng: np.random.Generator) -
     raise ScenarioError("the obstacles leave no free water to place nodes in", "obstacles")
 
 
-def _check_field(name: str, value: Any, spec: _Spec) -> Any:
+def _check_field(name: str, value: Any, spec: Spec) -> Any:
     kind = spec.kind
     if value is None:
         if spec.optional:
             return None
         raise ScenarioError(f"{name} must be set: {spec.doc}", name)
-    if kind == "str":
-        if not isinstance(value, str):
-            raise ScenarioError(f"{name} = {value!r} must be a string", name)
-        if spec.choices and value not in spec.choices:
-            raise ScenarioError(f"{name} = {value!r} is not allowed: must be {spec.allowed()}", name)
-        return value
-    if kind == "bool":
-        if not isinstance(value, (bool, np.bool_)):
-            raise ScenarioError(f"{name} = {value!r} must be true or false", name)
-        return bool(value)
     if kind == "vector3":
         return _vector(name, value, 3)
     if kind == "cell":
@@ -567,7 +542,8 @@ def _check_field(name: str, value: Any, spec: _Spec) -> Any:
             raise ScenarioError(f"{name} must be a list of (x, y, depth) triples", name)
         return tuple(_vector(name, p, 3) for p in value)
     if kind == "heightmap":
-        if not isinstance(value, (list, tuple, np.ndarray)) or not value:
+        # len(), not truth: a numpy array has no single truth value
+        if not isinstance(value, (list, tuple, np.ndarray)) or len(value) == 0:
             raise ScenarioError(f"{name} must be a 2-D list of heights", name)
         rows = tuple(tuple(_number(name, v) for v in row) if isinstance(row, (list, tuple, np.ndarray)) else None for row in value)
         if any(r is None for r in rows) or len({len(r) for r in rows}) != 1:  # type: ignore[arg-type]
@@ -577,19 +553,7 @@ def _check_field(name: str, value: Any, spec: _Spec) -> Any:
         if not isinstance(value, (list, tuple)):
             raise ScenarioError(f"{name} must be a list of obstacle tables", name)
         return tuple(_obstacle_from_mapping(i, o) for i, o in enumerate(value))
-    # numbers
-    if kind == "int":
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            if isinstance(value, (float, np.floating)) and float(value).is_integer():
-                value = int(value)
-            else:
-                raise ScenarioError(f"{name} = {value!r} is not allowed: must be {spec.allowed()}", name)
-        value = int(value)
-    else:
-        value = _number(name, value)
-    if not spec.in_range(value):
-        raise ScenarioError(f"{name} = {value!r} is out of range: must be {spec.allowed()}", name)
-    return value
+    return check_value(name, value, spec, error=ScenarioError)
 
 
 # ---------------------------------------------------------------------------- presets

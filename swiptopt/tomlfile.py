@@ -15,16 +15,26 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 
 def read_toml(path: str | Path, what: str) -> dict[str, Any]:
-    """The parsed file; a missing, unreadable or malformed file is a :class:`ConfigError`.
+    """The parsed file; a missing, unreadable, non-UTF-8 or malformed file is a
+    :class:`ConfigError`.
 
     ``what`` names the kind of file in the message ("scenario", "experiment").
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except OSError as exc:
         raise ConfigError(f"cannot read {what} file {str(path)!r}: {exc.strerror}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"{path}: not a UTF-8 text file (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+            f"a {what} file is TOML, which is UTF-8"
+        ) from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: malformed TOML: {exc}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: malformed TOML: values nested too deeply") from None

@@ -4,7 +4,12 @@ An experiment expands into tasks, one per (scenario, algorithm, seed); a task's 
 hash of its fully resolved configuration (every scenario field, every algorithm setting,
 the seed, the episode count), so the results store recognises finished work whatever file
 or command produced it. Experiments are validated like scenarios: unknown keys, wrong
-types and out-of-range values are errors that name the key.
+types and out-of-range values are errors that name the key. All of it is checked when an
+:class:`Experiment` is built, so nothing runs before the check: every algorithm setting
+against the algorithm's schema (:mod:`swiptopt.benchmark.algorithms`), every sweep point's
+scenario, sweep values that would repeat a point, the name (it names files, so letters,
+digits, ``-``, ``_`` and ``.`` only), and the sizes of :mod:`swiptopt.limits` (tasks and
+evaluation episodes, and each scenario's grid).
 
 File format::
 
@@ -38,23 +43,38 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from swiptopt.benchmark.algorithms import ALGORITHMS, resolve_settings
+from swiptopt.benchmark.algorithms import ALGORITHMS, check_settings_for, resolve_settings
 from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.limits import check_size
 from swiptopt.tomlfile import read_toml
+from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.scenario import Scenario, ScenarioError
 
 
 #: Evaluation seeds of a task start this far from its training seed.
 EVALUATION_OFFSET = 1_000_003
+#: Task seeds of one layout: layout L's tasks have seeds SEEDS_PER_LAYOUT * L + 0, 1, ...
+SEEDS_PER_LAYOUT = 1000
 
 ALL_ALGORITHMS = tuple(ALGORITHMS)
 TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline"}
 FIGURE_KEYS = {"metric", "x", "title", "ylabel", "xlabel"}
+
+
+#: The counts of an experiment. A task's seed is 1000 x layout + seed index, so more than
+#: 1000 seeds per layout would give two tasks one seed.
+_COUNTS = {
+    "layouts": Spec(kind="int", lo=1, hi=100_000),
+    "seeds": Spec(kind="int", lo=1, hi=SEEDS_PER_LAYOUT),
+    "episodes": Spec(kind="int", lo=1, hi=100_000),
+}
 
 
 @dataclass(frozen=True)
@@ -102,41 +122,89 @@ class Experiment:
     """An algorithm of the experiment that the others are compared with, task by task."""
 
     def __post_init__(self) -> None:
-        for key, low in (("layouts", 1), ("seeds", 1), ("episodes", 1)):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= 100_000:
-                raise ConfigError(f"{key} = {value!r} is out of range: must be an integer in [{low}, 100000]", key)
-        if not self.algorithms:
+        _check_name(self.name)
+        for key in ("description", "baseline"):
+            if not isinstance(getattr(self, key), str):
+                raise ConfigError(f"{key} = {getattr(self, key)!r} must be a string", key)
+        for key, spec in _COUNTS.items():
+            object.__setattr__(self, key, check_value(key, getattr(self, key), spec))
+        scenario = check_keys("[scenario]", self.scenario, "scenario")
+        if "layout_seed" in scenario:
+            raise ConfigError("scenario.layout_seed cannot be set: layouts are set by 'layouts'", "layout_seed")
+        algorithms = check_keys("[algorithms]", self.algorithms, "algorithms")
+        if not algorithms:
             raise ConfigError("an experiment needs at least one algorithm in [algorithms]", "algorithms")
-        for name, settings in self.algorithms.items():
-            if not isinstance(settings, dict):
-                raise ConfigError(f"algorithms.{name} must be a table of settings", name)
-            resolve_settings(name, settings)
-        if self.baseline and self.baseline not in self.algorithms:
+        resolved = {name: resolve_settings(name, settings) for name, settings in algorithms.items()}
+        if self.baseline and self.baseline not in algorithms:
             raise ConfigError(
-                f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(self.algorithms)})",
+                f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(algorithms)})",
                 "baseline",
             )
+        self._check_sweep()
+        self._check_figure()
+        n_points = math.prod(len(v) for v in self.sweep.values())
+        n_tasks = n_points * self.layouts * len(algorithms) * self.seeds
+        check_size(
+            "max_tasks", n_tasks,
+            f"tasks ({n_points:,} sweep points x {self.layouts:,} layouts x {len(algorithms)} algorithms x "
+            f"{self.seeds:,} seeds)",
+            "sweep" if n_points > 1 else "layouts",
+        )
+        check_size("max_evaluation_episodes", n_tasks * self.episodes,
+                   f"evaluation episodes ({n_tasks:,} tasks x episodes = {self.episodes:,})", "episodes")
+        # every scenario of the sweep now, so a bad value fails before any work; a point
+        # that resolves to the same scenario as another would be counted twice
+        keys = list(self.sweep)
+        seen: dict[str, tuple[int, ...]] = {}
+        for index in itertools.product(*(range(len(self.sweep[k])) for k in keys)):
+            point = {k: self.sweep[k][i] for k, i in zip(keys, index)}
+            built = self.scenario_for(point, 0)
+            where = f" at sweep point {point}" if point else ""
+            for name, settings in resolved.items():
+                check_settings_for(name, settings, built, where)
+            fingerprint = json.dumps(built.to_dict(), sort_keys=True)
+            if fingerprint in seen:
+                key, i, j = next((k, i, j) for k, i, j in zip(keys, seen[fingerprint], index) if i != j)
+                a, b = self.sweep[key][i], self.sweep[key][j]
+                same = f"lists {a!r} twice" if repr(a) == repr(b) else f"lists {a!r} and {b!r}, which give the same scenario"
+                raise ConfigError(f"sweep.{key} {same}: remove the duplicate", key)
+            seen[fingerprint] = index
+
+    def _check_sweep(self) -> None:
+        sweep = check_keys("[sweep]", self.sweep, "sweep")
         names = {f.name for f in dataclasses.fields(Scenario)}
-        for key, values in self.sweep.items():
+        for key, values in sweep.items():
             if key not in names or key == "layout_seed":
-                raise ConfigError(f"sweep key {key!r} is not a scenario field (layouts are set by 'layouts')", key)
+                raise ConfigError(
+                    f"sweep key {key!r}{did_you_mean(key, names)} is not a scenario field "
+                    "(layouts are set by 'layouts')",
+                    key,
+                )
             if not isinstance(values, list) or not values:
                 raise ConfigError(f"sweep.{key} must be a non-empty list of values", key)
-        unknown = sorted(set(self.figure) - FIGURE_KEYS)
+
+    def _check_figure(self) -> None:
+        figure = check_keys("[figure]", self.figure, "figure")
+        unknown = sorted(set(figure) - FIGURE_KEYS)
         if unknown:
             raise ConfigError(f"unknown figure key {unknown[0]!r}; known: {', '.join(sorted(FIGURE_KEYS))}", unknown[0])
-        metric = self.figure.get("metric")
+        for key, value in figure.items():
+            if not isinstance(value, str):
+                raise ConfigError(f"figure.{key} = {value!r} must be a string", key)
+        metric = figure.get("metric")
         if metric is not None and metric not in EPISODE_METRICS:
             raise ConfigError(f"figure.metric = {metric!r} is not a metric: choose one of {', '.join(EPISODE_METRICS)}", "metric")
-        # validate every scenario of the sweep now, so a bad value fails before any work
-        for point in self.points():
-            self.scenario_for(point, 0)
+        if figure and not self.sweep:
+            raise ConfigError("[figure] needs a [sweep]: a figure draws a metric against a swept value", "figure")
+        x = figure.get("x")
+        if x is not None and x not in self.sweep:
+            raise ConfigError(f"figure.x = {x!r} is not swept: choose one of the sweep's keys ({', '.join(self.sweep)})", "x")
 
     # ------------------------------------------------------------ construction
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Experiment:
+        data = check_keys("an experiment", data, "experiment")
         unknown = sorted(set(data) - TOP_KEYS)
         if unknown:
             raise ConfigError(
@@ -149,19 +217,17 @@ class Experiment:
                 raise ConfigError(f"[{key}] must be a table", key)
         if not isinstance(data.get("baseline", ""), str):
             raise ConfigError(f"baseline = {data['baseline']!r} must be an algorithm's name", "baseline")
-        name = data.get("name", "experiment")
-        if not isinstance(name, str) or not name:
-            raise ConfigError(f"name = {name!r} must be a non-empty string", "name")
+        algorithms = check_keys("[algorithms]", data.get("algorithms", {}), "algorithms")
         return cls(
-            name=name,
+            name=data.get("name", "experiment"),
             scenario=dict(data.get("scenario", {"preset": "paper"})),
-            algorithms={k: dict(v) if isinstance(v, dict) else v for k, v in data.get("algorithms", {}).items()},
+            algorithms={k: dict(v) if isinstance(v, dict) else v for k, v in algorithms.items()},
             sweep=dict(data.get("sweep", {})),
             layouts=data.get("layouts", 5),
             seeds=data.get("seeds", 1),
             episodes=data.get("episodes", 10),
             figure=dict(data.get("figure", {})),
-            description=str(data.get("description", "")),
+            description=data.get("description", ""),
             baseline=data.get("baseline", ""),
         )
 
@@ -220,7 +286,7 @@ class Experiment:
                 for name, settings in self.algorithms.items():
                     resolved = resolve_settings(name, settings)
                     for s in range(self.seeds):
-                        out.append(Task(self.name, scenario, name, resolved, 1000 * layout + s, self.episodes, point))
+                        out.append(Task(self.name, scenario, name, resolved, SEEDS_PER_LAYOUT * layout + s, self.episodes, point))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -232,6 +298,19 @@ class Experiment:
 _PAPER_ALGORITHMS = {"q_learning": {}, "sarsa": {}, "random": {}}
 _ALL = {name: {} for name in ALL_ALGORITHMS}
 _NODE_SWEEP = {"n_nodes": [10, 20, 30, 40, 50]}
+
+
+#: An experiment's name names its files: letters, digits, '-', '_' and '.', not only dots.
+NAME_PATTERN = re.compile(r"[A-Za-z0-9._-]{1,100}")
+
+
+def _check_name(name: Any) -> None:
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name) or ".." in name or not name.strip("."):
+        raise ConfigError(
+            f"name = {name!r} is not allowed: an experiment's name names its files, so it must be 1 to 100 "
+            "letters, digits, '-', '_' or '.', without '..'",
+            "name",
+        )
 
 
 def _builtin(name: str, description: str, **fields: Any) -> Experiment:

@@ -1,9 +1,15 @@
 """Figures (matplotlib, PNG and PDF sized for one column of a two-column paper) with the
-data behind each written beside it as CSV."""
+data behind each written beside it as CSV.
+
+Files are named after the experiment (a name :class:`Experiment` restricts to letters,
+digits, ``-``, ``_`` and ``.``) and written only inside the output directory given.
+"""
 
 from __future__ import annotations
 
 import csv
+import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +17,7 @@ import numpy as np
 
 from swiptopt.benchmark.experiment import Experiment
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.errors import ConfigError
 
 #: One column of a two-column paper, inches.
 COLUMN_WIDTH_IN = 3.5
@@ -37,29 +44,58 @@ def _figure(height_in: float = 2.5):  # type: ignore[no-untyped-def]
     return fig
 
 
+def _output_path(outdir: Path, filename: str) -> Path:
+    """``outdir / filename``, refusing any name that would land elsewhere."""
+    path = outdir / filename
+    if Path(filename).name != filename or filename in (".", "..") or path.resolve().parent != outdir.resolve():
+        raise ConfigError(f"{filename!r} is not a plain file name inside {str(outdir)!r}", "name")
+    return path
+
+
 def _save(fig, outdir: Path, stem: str) -> list[Path]:  # type: ignore[no-untyped-def]
     import matplotlib
 
     with matplotlib.rc_context({"font.size": 8}):
         fig.tight_layout()
+    paths = [_output_path(outdir, f"{stem}.png"), _output_path(outdir, f"{stem}.pdf")]
     outdir.mkdir(parents=True, exist_ok=True)
-    paths = [outdir / f"{stem}.png", outdir / f"{stem}.pdf"]
     fig.savefig(paths[0], dpi=200)
     fig.savefig(paths[1])
     return paths
 
 
-def _write_csv(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
+def _write_csv(outdir: Path, filename: str, header: list[str], rows: list[list[Any]]) -> Path:
+    path = _output_path(outdir, filename)
+    outdir.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(header)
         writer.writerows(rows)
     return path
 
 
-def experiment_figure(experiment: Experiment, store: ResultStore, outdir: str | Path) -> list[Path]:
-    """Metric against the sweep variable, one line per algorithm, 95 % CI error bars."""
+@dataclass(frozen=True)
+class FigureResult:
+    """What drawing one experiment's figure did: the files written, or why none were."""
+
+    experiment: str
+    paths: list[Path]
+    skipped: str = ""
+    """Why no figure was drawn (empty when it was)."""
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def experiment_figure(experiment: Experiment, store: ResultStore, outdir: str | Path) -> FigureResult:
+    """Metric against the sweep variable, one line per algorithm (and per value of any other
+    swept key), 95 % CI error bars; files named after the experiment inside ``outdir``.
+
+    A numeric sweep variable is drawn on a numeric axis, any other (names, choices) as
+    categories in the sweep's order. Nothing is drawn, and ``skipped`` says why, when the
+    store holds none of the experiment's results.
+    """
     import matplotlib
 
     from swiptopt.benchmark import tables
@@ -67,32 +103,51 @@ def experiment_figure(experiment: Experiment, store: ResultStore, outdir: str | 
     outdir = Path(outdir)
     metric = experiment.figure.get("metric", "return")
     x_key = experiment.figure.get("x") or next(iter(experiment.sweep), None)
-    if x_key is None:
-        raise ValueError(f"experiment {experiment.name!r} has no sweep to plot against")
+    if x_key is None:  # Experiment refuses a figure without a sweep; a plain result says so too
+        return FigureResult(experiment.name, [], "the experiment has no sweep to plot against")
     rows, _ = tables.aggregate(experiment, store)
+    if not rows:
+        return FigureResult(experiment.name, [], "the store holds none of its results")
+    x_values = experiment.sweep[x_key]
+    numeric = all(_is_number(v) for v in x_values)
+    others = [k for k in experiment.sweep if k != x_key]
     ylabel, scale = _UNITS.get(metric, (metric, 1.0))
     data_rows = []
     with matplotlib.rc_context({"font.size": 8}):
         fig = _figure()
         ax = fig.add_subplot(1, 1, 1)
         for algorithm in experiment.algorithms:
-            mine = sorted((r for r in rows if r.algorithm == algorithm), key=lambda r: r.point[x_key])
-            if not mine:
-                continue
-            x = np.array([r.point[x_key] for r in mine], dtype=float)
-            s = [r.summaries[metric] for r in mine]
-            y = np.array([v.mean for v in s]) * scale
-            err = np.nan_to_num(np.array([v.ci95 for v in s]) * scale)
-            ax.errorbar(x, y, yerr=err, marker="o", ms=3, capsize=2, lw=1, label=mine[0].label)
-            data_rows += [[algorithm, r.point[x_key], v.mean, v.ci95, v.min, v.max, v.n, v.missing] for r, v in zip(mine, s)]
+            mine = [r for r in rows if r.algorithm == algorithm]
+            series: dict[str, list[tables.Row]] = {}
+            for r in mine:
+                series.setdefault(json.dumps([r.point[k] for k in others]), []).append(r)
+            for group in series.values():
+                group.sort(key=lambda r: x_values.index(r.point[x_key]))
+                if numeric:
+                    group.sort(key=lambda r: r.point[x_key])
+                    x = np.array([r.point[x_key] for r in group], dtype=float)
+                else:
+                    x = np.array([x_values.index(r.point[x_key]) for r in group], dtype=float)
+                s = [r.summaries[metric] for r in group]
+                y = np.array([v.mean for v in s]) * scale
+                err = np.nan_to_num(np.array([v.ci95 for v in s]) * scale)
+                fixed = [group[0].point[k] for k in others]
+                label = ", ".join([group[0].label] + [f"{k}={v}" for k, v in zip(others, fixed)])
+                ax.errorbar(x, y, yerr=err, marker="o", ms=3, capsize=2, lw=1, label=label)
+                data_rows += [
+                    [algorithm, *fixed, r.point[x_key], v.mean, v.ci95, v.min, v.max, v.n, v.missing]
+                    for r, v in zip(group, s)
+                ]
+        if not numeric:
+            ax.set_xticks(range(len(x_values)), [str(v) for v in x_values])
         ax.set_xlabel(experiment.figure.get("xlabel", _X_LABELS.get(x_key, x_key)))
         ax.set_ylabel(experiment.figure.get("ylabel", ylabel))
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
         paths = _save(fig, outdir, experiment.name)
-    paths.append(_write_csv(outdir / f"{experiment.name}.csv",
-                            ["algorithm", x_key, metric + "_mean", "ci95", "min", "max", "n", "missing"], data_rows))
-    return paths
+    header = ["algorithm", *others, x_key, metric + "_mean", "ci95", "min", "max", "n", "missing"]
+    paths.append(_write_csv(outdir, f"{experiment.name}.csv", header, data_rows))
+    return FigureResult(experiment.name, paths)
 
 
 def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
@@ -128,5 +183,5 @@ def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
         paths = _save(fig, outdir, "fig-coverage")
-    paths.append(_write_csv(outdir / "fig-coverage.csv", ["n_nodes", "x_m", "analytic", "simulated", "trials"], data_rows))
+    paths.append(_write_csv(outdir, "fig-coverage.csv", ["n_nodes", "x_m", "analytic", "simulated", "trials"], data_rows))
     return paths

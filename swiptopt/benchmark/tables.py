@@ -195,18 +195,18 @@ def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[Pa
     return rows
 
 
-def _ratio_cell(r: Ratio, dash: str = "–") -> str:
+def _ratio_cell(r: Ratio) -> str:
     if math.isnan(r.ratio):
         return f"n/a ({r.wins}/{r.n})"
-    interval = "" if math.isnan(r.low) else f" [{r.low:.2f}{dash}{r.high:.2f}]"
+    interval = "" if math.isnan(r.low) else f" [{r.low:.2f}–{r.high:.2f}]"
     return f"{r.ratio:.2f}×{interval} {r.wins}/{r.n}"
 
 
-def _paired_table(rows: list[PairedRow], dash: str = "–") -> tuple[list[str], list[list[str]]]:
+def _paired_table(rows: list[PairedRow]) -> tuple[list[str], list[list[str]]]:
     has_point = any(r.point for r in rows)
     heads = (["point"] if has_point else []) + ["algorithm"] + [h for _, h in PAIRED]
     cells = [
-        ([_point_label(r.point)] if has_point else []) + [r.label] + [_ratio_cell(r.ratios[m], dash) for m, _ in PAIRED]
+        ([_point_label(r.point)] if has_point else []) + [r.label] + [_ratio_cell(r.ratios[m]) for m, _ in PAIRED]
         for r in rows
     ]
     return heads, cells
@@ -220,13 +220,13 @@ def paired_title(experiment: Experiment) -> str:
     )
 
 
-def _cell(s: Summary | None, scale: float, digits: int, plus: str = "±") -> str:
+def _cell(s: Summary | None, scale: float, digits: int) -> str:
     if s is None or s.n == 0:
         return "n/a"
     mean = s.mean * scale
     text = f"{mean:.{digits}f}"
     if not math.isnan(s.ci95):
-        text += f" {plus} {s.ci95 * scale:.{digits}f}"
+        text += f" ± {s.ci95 * scale:.{digits}f}"
     if s.missing:
         text += f" ({s.missing} n/r)"
     return text
@@ -243,15 +243,15 @@ def _headings(rows: list[Row]) -> list[str]:
     return heads + (["gap to optimum"] if has_opt else [])
 
 
-def _cells(row: Row, rows: list[Row], plus: str = "±") -> list[str]:
+def _cells(row: Row, rows: list[Row]) -> list[str]:
     has_point = any(r.point for r in rows)
     has_opt = any(GAP_OPTIMUM in r.summaries for r in rows)
     out = ([_point_label(row.point)] if has_point else []) + [row.label, str(row.rank)]
     for metric, _, scale, digits in DISPLAY:
-        text = _cell(row.summaries.get(metric), scale, digits, plus)
+        text = _cell(row.summaries.get(metric), scale, digits)
         out.append(text + (" %" if metric == GAP_BOUND and text != "n/a" else ""))
     if has_opt:
-        opt = _cell(row.summaries.get(GAP_OPTIMUM), 100.0, 0, plus)
+        opt = _cell(row.summaries.get(GAP_OPTIMUM), 100.0, 0)
         out.append(opt + (" %" if opt != "n/a" else ""))
     return out
 
@@ -262,11 +262,39 @@ def _markdown(heads: list[str], cells: list[list[str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: How each character LaTeX treats specially is written as text (and the few symbols the
+#: tables use, as math). Control characters become spaces; everything else passes through
+#: (LaTeX reads UTF-8).
+_LATEX = {
+    "\\": r"\textbackslash{}",
+    "{": r"\{",
+    "}": r"\}",
+    "$": r"\$",
+    "&": r"\&",
+    "#": r"\#",
+    "%": r"\%",
+    "_": r"\_",
+    "^": r"\textasciicircum{}",
+    "~": r"\textasciitilde{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "|": r"\textbar{}",
+    "±": r"$\pm$",
+    "×": r"$\times$",
+    "–": "--",
+}
+
+
+def latex_escape(text: str) -> str:
+    """``text`` as LaTeX that typesets it verbatim: every special character escaped, so a
+    swept value such as ``\\input{/etc/hostname}`` or ``a & b`` is printed, never run."""
+    return "".join(_LATEX.get(c, c if c.isprintable() else " ") for c in text)
+
+
 def _latex(heads: list[str], cells: list[list[str]], numeric: int) -> str:
-    esc = lambda s: s.replace("%", r"\%").replace("_", r"\_").replace("×", r"$\times$")  # noqa: E731
     lines = [r"\begin{tabular}{" + "l" * (len(heads) - numeric) + "r" * numeric + "}", r"\hline"]
-    lines.append(" & ".join(esc(h) for h in heads) + r" \\ \hline")
-    lines += [" & ".join(esc(c) for c in row) + r" \\" for row in cells]
+    lines.append(" & ".join(latex_escape(h) for h in heads) + r" \\ \hline")
+    lines += [" & ".join(latex_escape(c) for c in row) + r" \\" for row in cells]
     lines += [r"\hline", r"\end{tabular}"]
     return "\n".join(lines) + "\n"
 
@@ -276,7 +304,7 @@ def to_markdown(rows: list[Row]) -> str:
 
 
 def to_latex(rows: list[Row]) -> str:
-    return _latex(_headings(rows), [_cells(r, rows, r"$\pm$") for r in rows], len(DISPLAY))
+    return _latex(_headings(rows), [_cells(r, rows) for r in rows], len(DISPLAY))
 
 
 def paired_to_csv(rows: list[PairedRow]) -> str:
@@ -296,8 +324,7 @@ def render_paired(rows: list[PairedRow], fmt: str) -> str:
     if fmt == "csv":
         return paired_to_csv(rows)
     if fmt == "latex":
-        heads, cells = _paired_table(rows, "--")
-        return _latex(heads, cells, len(PAIRED))
+        return _latex(*_paired_table(rows), len(PAIRED))
     return _markdown(*_paired_table(rows))
 
 

@@ -7,7 +7,7 @@ from planners.clustering import coverage_tables, kmeans_hover_points
 from planners.grid import bfs_distances, path_actions
 from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner, _integer_steps
 from rl import RandomAgent
-from swiptopt import Scenario, evaluate
+from swiptopt import Box, Scenario, evaluate
 from swiptopt import kernel as K
 from swiptopt.env import AuvSwiptEnv
 
@@ -121,3 +121,75 @@ def test_integer_steps():
 def test_predict_without_begin_episode_is_a_clear_error():
     with pytest.raises(RuntimeError, match="begin_episode"):
         GreedyPlanner().predict(0)
+
+
+# ------------------------------------------------------------------ cells the AUV cannot reach
+
+PLANNERS = [lambda: KMeansTspPlanner(tsp_time_limit_s=0.3), LawnmowerPlanner, GreedyPlanner]
+WALL = Box((60.0, 0.0, 0.0), (70.0, 100.0, 50.0))  # across the whole volume at x = 60..70 m
+# the start cell (5, 5, 0) with its four horizontal neighbours and the one below blocked
+BOXED_IN = tuple(
+    Box(tuple(c - 4.0 for c in centre), tuple(c + 4.0 for c in centre))
+    for centre in ((45.0, 55.0, 5.0), (65.0, 55.0, 5.0), (55.0, 45.0, 5.0), (55.0, 65.0, 5.0), (55.0, 55.0, 15.0))
+)
+
+
+def flood_fill(scenario):
+    """(n_cells,) bool: free cells connected to the start cell by face neighbours (numpy
+    dilation, independent of the planners' breadth-first search)."""
+    free = ~scenario.blocked_cells.reshape(scenario.grid_shape)
+    seen = np.zeros_like(free)
+    seen[scenario.resolved_start_cell] = True
+    while True:
+        grown = seen.copy()
+        for axis in range(3):
+            ahead, behind = [slice(None)] * 3, [slice(None)] * 3
+            ahead[axis], behind[axis] = slice(1, None), slice(None, -1)
+            grown[tuple(ahead)] |= seen[tuple(behind)]
+            grown[tuple(behind)] |= seen[tuple(ahead)]
+        grown &= free
+        if np.array_equal(grown, seen):
+            return seen.ravel()
+        seen = grown
+
+
+def run_episode(policy, env):
+    obs, info = env.reset(seed=0)
+    policy.begin_episode(env, obs, info)
+    cells = [env.state.cell]
+    while True:
+        obs, _, terminated, truncated, _ = env.step(policy.predict(obs, deterministic=True))
+        cells.append(env.state.cell)
+        if terminated or truncated:
+            return env.state, cells
+
+
+@pytest.mark.parametrize("make", PLANNERS, ids=["kmeans_tsp", "lawnmower", "greedy"])
+@pytest.mark.parametrize("obstacles", [(WALL,), BOXED_IN], ids=["wall", "boxed_in"])
+def test_planners_skip_what_they_cannot_reach_and_serve_the_rest(make, obstacles):
+    scenario = Scenario.preset("paper", n_nodes=20, channel="none", obstacles=obstacles)
+    env = AuvSwiptEnv(scenario)
+    reach = flood_fill(scenario)
+    covered, _ = coverage_tables(scenario)
+    lost = np.flatnonzero(covered.any(axis=0) & ~covered[reach].any(axis=0))
+    assert lost.size > 0  # the case is real: some coverable nodes are out of reach
+
+    policy = make()
+    state, cells = run_episode(policy, env)
+    plan = policy.plan_
+    assert plan.details["unreachable_nodes"] == list(lost)
+    assert "unreachable from the start cell" in plan.status
+    assert all(reach[c] for c in cells)
+    np.testing.assert_array_equal(state.data_left[lost], env.tables.data0[lost])
+    served = env.tables.data0 - state.data_left
+    if obstacles == BOXED_IN:
+        assert set(cells) == {scenario.start_cell_index}  # nowhere to go: it hovers
+        assert np.all(served == 0)  # and the start cell covers nobody here
+    else:
+        assert served.sum() > 0  # it still serves what it can reach
+    if isinstance(policy, LawnmowerPlanner):
+        stops = plan.details["unreachable_stops"]
+        assert stops and not reach[stops].any()
+        assert all(reach[s.cell] for s in plan.stops)
+    # the same through evaluate, twice: no exception, and the same numbers
+    assert evaluate(make(), env, episodes=1, seed=3).records == evaluate(make(), env, episodes=1, seed=3).records

@@ -61,3 +61,84 @@ def test_random_agent_uses_its_own_generator():
     a, b = RandomAgent(seed=4), RandomAgent(seed=4)
     assert [a.predict(0) for _ in range(50)] == [b.predict(0) for _ in range(50)]
     assert len({a.predict(0) for _ in range(200)}) == 7
+
+
+def saved_agent(tmp_path):
+    agent = QLearningAgent(12, seed=1, learning_rate=0.5)
+    agent.q_table_[:] = np.arange(12 * 7).reshape(12, 7)
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    return path, arrays
+
+
+def resave(tmp_path, arrays, **changes):
+    path = tmp_path / "bad.npz"
+    values = {**arrays, **changes}
+    np.savez(path, **{k: v for k, v in values.items() if v is not None})
+    return path
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"epsilon": None}, ["lacks the array 'epsilon'"]),
+        ({"q_table": np.zeros((12, 7, 2))}, ["q_table must be a 2-D float array", "3-D"]),
+        ({"q_table": np.zeros((12, 7), dtype=np.int64)}, ["q_table must be a 2-D float array", "int64"]),
+        ({"q_table": np.zeros((0, 7))}, ["q_table must be a 2-D float array"]),
+        ({"q_table": np.full((12, 7), np.nan)}, ["not finite"]),
+        ({"epsilon": np.array([0.5, 0.5])}, ["epsilon must be a single float", "(2,)"]),
+        ({"epsilon": np.array(3.0)}, ["epsilon = 3.0 must lie in [0, 1]"]),
+        ({"seed": np.array("three")}, ["seed must be a single integer"]),
+        ({"algorithm": np.array(7)}, ["algorithm must be a single str"]),
+        ({"config": np.array('{"learning_rate": 0.5, "colour": "red"}')}, ["unknown agent setting 'colour'"]),
+        ({"config": np.array('{"learning_rate": 7}')}, ["learning_rate = 7"]),
+        ({"config": np.array("{not json")}, ["config is not valid JSON"]),
+        ({"config": np.array("[1, 2]")}, ["config must be a JSON object"]),
+        ({"rng_state": np.array('{"bit_generator": "MT19937"}')}, ["rng_state is not a state of PCG64"]),
+    ],
+)
+def test_load_refuses_a_malformed_agent_file_in_one_line(tmp_path, change, words):
+    _, arrays = saved_agent(tmp_path)
+    path = resave(tmp_path, arrays, **change)
+    with pytest.raises(swiptopt.ConfigError) as info:
+        QLearningAgent.load(path)
+    message = str(info.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    for word in words:
+        assert word in message
+
+
+def test_load_refuses_files_that_are_not_agent_archives(tmp_path):
+    path, _ = saved_agent(tmp_path)
+    good = path.read_bytes()
+    cases = {
+        "absent.npz": None,
+        "text.npz": b"q_table = 3\n",
+        "truncated.npz": good[: len(good) // 2],
+        "zeroed.npz": good[: len(good) // 2] + bytes(len(good) - len(good) // 2),
+        "empty.npz": b"",
+    }
+    for name, content in cases.items():
+        bad = tmp_path / name
+        if content is not None:
+            bad.write_bytes(content)
+        with pytest.raises(swiptopt.ConfigError) as info:
+            QLearningAgent.load(bad)
+        assert str(bad) in str(info.value) and "\n" not in str(info.value), name
+    single = tmp_path / "single.npy"
+    np.save(single, np.zeros((12, 7)))
+    with pytest.raises(swiptopt.ConfigError, match="single array, not an .npz archive"):
+        QLearningAgent.load(single)
+    _, arrays = saved_agent(tmp_path)
+    with pytest.raises(swiptopt.ConfigError, match="Object arrays cannot be loaded when allow_pickle=False"):
+        QLearningAgent.load(resave(tmp_path, arrays, q_table=np.array([{"a": 1}], dtype=object)))
+    with pytest.raises(swiptopt.ConfigError, match="no such agent file"):
+        QLearningAgent.load(tmp_path / "absent.npz")
+    with pytest.raises(swiptopt.ConfigError, match="cannot read"):
+        QLearningAgent.load(tmp_path)
+    # the well-formed file still loads, exactly
+    loaded = QLearningAgent.load(path)
+    np.testing.assert_array_equal(loaded.q_table_, np.arange(12 * 7).reshape(12, 7))
+    assert loaded.config.learning_rate == 0.5

@@ -88,3 +88,21 @@ def test_agents_learn_on_unseen_layouts():
     assert np.all(rand > 0)
     assert q[0] > 1.3 and q[1] > 1.3 and q[2] > 2.0, q  # measured 1.9, 1.9, 3.1
     assert sarsa[0] > 1.1 and sarsa[1] > 1.1 and sarsa[2] > 1.5, sarsa  # measured 1.4, 1.5, 2.3
+
+
+def test_training_episodes_beyond_the_limit_are_refused_before_the_log_is_allocated(monkeypatch):
+    from rl.training import LOG_COLUMNS
+    from swiptopt.limits import LOG_BYTES_PER_EPISODE
+
+    assert LOG_BYTES_PER_EPISODE == 8 * len(LOG_COLUMNS)  # the message's size is the log's
+    env = AuvSwiptEnv(preset="tiny")
+    agent = QLearningAgent(env.observation_space.n, seed=0)
+    with pytest.raises(swiptopt.ConfigError) as info:
+        train(agent, env, 10**9, seed=0)
+    assert info.value.field == "episodes"
+    for words in ("1,000,000,000", "10,000,000", "SWIPTOPT_MAX_TRAINING_EPISODES", "59.6 GiB"):
+        assert words in str(info.value)
+    monkeypatch.setenv("SWIPTOPT_MAX_TRAINING_EPISODES", "20")
+    with pytest.raises(swiptopt.ConfigError, match="21, over the limit of 20"):
+        train(agent, env, 21, seed=0, backend="compiled")
+    assert len(train(agent, env, 20, seed=0, backend="compiled")) == 20

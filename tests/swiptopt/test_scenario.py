@@ -196,3 +196,78 @@ def test_service_range_follows_the_snr_threshold():
     r = link.service_range_m(tight)
     assert 10.0 < r < 100.0
     assert link.link_budget(tight, r).snr_db == pytest.approx(95.0, abs=1e-6)
+
+
+# ------------------------------------------------------------------ labels, keys, files, sizes
+
+
+def test_a_preset_may_carry_a_label_of_its_own(tmp_path):
+    s = Scenario.preset("tiny", name="my tiny")
+    assert (s.name, s.grid_shape) == ("my tiny", Scenario.preset("tiny").grid_shape)
+    assert Scenario.preset("tiny").name == "tiny"
+    path = tmp_path / "s.toml"
+    path.write_text('preset = "harbour"\nname = "quay"\n')
+    assert Scenario.from_toml(path).name == "quay"
+    assert Scenario.from_dict({"name": "plain", "n_nodes": 3}).name == "plain"
+    with pytest.raises(ScenarioError, match="name = 3 must be a string"):
+        Scenario.preset("tiny", name=3)
+
+
+@pytest.mark.parametrize("values", [{3: 1}, {3: 1, "n_nodes": 3}, {None: 1, 2.5: 2}, {("a",): 1, "preset": "tiny"}])
+def test_non_string_keys_are_scenario_errors(values):
+    with pytest.raises(ScenarioError, match="not a string") as info:
+        Scenario.from_dict(values)
+    assert info.value.field == "scenario"
+
+
+def test_a_numpy_height_map_is_accepted():
+    heights = np.array([[12.0, 12.0, 12.0], [4.0, 4.0, 4.0], [0.0, 0.0, 0.0]])
+    s = Scenario.preset("harbour", seabed_height_m=heights)
+    assert s == Scenario.preset("harbour")  # the same map as the preset's nested tuples
+    assert Scenario.preset("paper", node_positions_m=np.full((25, 3), 5.0)).layout.positions_m.shape == (25, 3)
+    with pytest.raises(ScenarioError, match="2-D list"):
+        Scenario.preset("paper", seabed_height_m=np.zeros(0))
+
+
+def test_a_file_that_is_not_utf8_is_one_error(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_bytes(b'preset = "tiny"\nname = "\xff\xfe"\n')
+    with pytest.raises(ScenarioError) as info:
+        Scenario.from_toml(path)
+    assert str(path) in str(info.value) and "not a UTF-8 text file (byte 0xff at offset 24)" in str(info.value)
+    path.write_text("a = " + "[" * 10_000 + "]" * 10_000 + "\n")
+    with pytest.raises(ScenarioError, match="nested too deeply"):
+        Scenario.from_toml(path)
+
+
+@pytest.mark.parametrize(
+    "overrides, field, words",
+    [
+        ({"cell_size_m": 0.01}, "cell_size_m", ["cell_size_m = 0.01", "10,000 x 10,000 x 5,000", "500,000,000,000",
+                                                "1,000,000", "SWIPTOPT_MAX_CELLS"]),
+        ({"length_m": 100_000.0, "width_m": 100_000.0}, "cell_size_m", ["10,000 x 10,000 x 5", "500,000,000"]),
+        ({"cell_size_m": 1.0, "n_nodes": 1000}, "n_nodes", ["500,000 x n_nodes = 1,000", "500,000,000", "50,000,000",
+                                                          "SWIPTOPT_MAX_CELL_NODE_PAIRS"]),
+    ],
+)
+def test_sizes_that_cannot_fit_fail_before_anything_is_allocated(monkeypatch, overrides, field, words):
+    def no_allocation(*args, **kwargs):
+        raise AssertionError("cells were allocated before the size check")
+
+    monkeypatch.setattr(Scenario, "is_blocked", no_allocation)
+    with pytest.raises(ScenarioError) as info:
+        Scenario.preset("paper", **overrides)
+    assert info.value.field == field
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_size_limits_allow_a_laptop_sized_scenario_and_are_overridable(monkeypatch):
+    fine = Scenario.preset("paper", cell_size_m=2.5, n_nodes=1000)
+    assert fine.n_cells * fine.n_nodes == 32_000_000
+    monkeypatch.setenv("SWIPTOPT_MAX_CELL_NODE_PAIRS", "1_000_000")
+    with pytest.raises(ScenarioError, match=r"32,000,000, over the limit of 1,000,000 \(set SWIPTOPT_MAX_CELL_NODE_PAIRS"):
+        Scenario.preset("paper", cell_size_m=2.5, n_nodes=1000)
+    monkeypatch.setenv("SWIPTOPT_MAX_CELLS", "600_000")
+    monkeypatch.setenv("SWIPTOPT_MAX_CELL_NODE_PAIRS", "600_000")
+    assert Scenario.preset("paper", cell_size_m=1.0, n_nodes=1).n_cells == 500_000

@@ -1,0 +1,129 @@
+"""Declarative checks of configuration values: a type, a range or a set of choices.
+
+One :class:`Spec` describes what a scalar setting may hold; :func:`check_value` checks a
+value against it and returns it normalised (an integral float for an integer setting becomes
+an int, an int for a float setting a float), or raises one error that names the setting, the
+value and what is allowed. Scenario fields and the benchmark's algorithm settings are both
+checked here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from swiptopt.errors import ConfigError
+
+KINDS = ("float", "int", "str", "bool")
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What one setting may hold.
+
+    ``kind`` is the type (``float``, ``int``, ``str``, ``bool``; scenarios add kinds of their
+    own); numbers lie in the interval from ``lo`` to ``hi`` (``None``: unbounded; ``*_open``:
+    the end itself excluded); strings with ``choices`` must be one of them; ``optional``
+    allows ``None`` (the setting left out).
+    """
+
+    unit: str = ""
+    doc: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    kind: str = "float"
+    choices: tuple[str, ...] = ()
+    optional: bool = False
+
+    def allowed(self, hi: float | None = None) -> str:
+        """What the setting may hold, in words; ``hi`` replaces the spec's upper end."""
+        if self.kind == "bool":
+            return "true or false"
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.kind == "str":
+            return "a string"
+        hi = self.hi if hi is None else hi
+        what = "an integer" if self.kind == "int" else "a number"
+        if self.lo is None and hi is None:
+            return what
+        number = (lambda x: str(int(x))) if self.kind == "int" else (lambda x: f"{x:g}")
+        lo_text = "-inf" if self.lo is None else number(self.lo)
+        hi_text = "inf" if hi is None else number(hi)
+        left = "(" if self.lo_open or self.lo is None else "["
+        right = ")" if self.hi_open or hi is None else "]"
+        return f"{what} in {left}{lo_text}, {hi_text}{right}"
+
+    def in_range(self, x: float, hi: float | None = None) -> bool:
+        hi = self.hi if hi is None else hi
+        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
+            return False
+        if hi is not None and (x > hi or (self.hi_open and x == hi)):
+            return False
+        return True
+
+
+def check_value(
+    name: str,
+    value: Any,
+    spec: Spec,
+    *,
+    field: str | None = None,
+    hi: float | None = None,
+    error: type[ConfigError] = ConfigError,
+) -> Any:
+    """``value`` checked against ``spec`` and normalised; otherwise ``error`` naming ``name``.
+
+    ``field`` is the error's field (default ``name``); ``hi`` replaces the spec's upper end
+    (a bound that depends on context, such as a scenario's grid).
+    """
+    field = field or name
+    if value is None:
+        if spec.optional:
+            return None
+        raise error(f"{name} must be set: {spec.allowed(hi)}", field)
+    kind = spec.kind
+    if kind == "str":
+        if not isinstance(value, str):
+            raise error(f"{name} = {value!r} must be {spec.allowed()}", field)
+        if spec.choices and value not in spec.choices:
+            raise error(f"{name} = {value!r} is not allowed: must be {spec.allowed()}", field)
+        return value
+    if kind == "bool":
+        if not isinstance(value, (bool, np.bool_)):
+            raise error(f"{name} = {value!r} must be true or false", field)
+        return bool(value)
+    if kind not in ("int", "float"):
+        raise TypeError(f"check_value checks {', '.join(KINDS)}, not {kind!r}")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise error(f"{name} = {value!r} is not allowed: must be {spec.allowed(hi)}", field)
+    if kind == "int":
+        if isinstance(value, (float, np.floating)):
+            if not float(value).is_integer():
+                raise error(f"{name} = {value!r} is not allowed: must be {spec.allowed(hi)}", field)
+        value = int(value)
+    else:
+        value = float(value)
+        if not math.isfinite(value):
+            raise error(f"{name} = {value!r} must be finite: {spec.allowed(hi)}", field)
+    if not spec.in_range(value, hi):
+        raise error(f"{name} = {value!r} is out of range: must be {spec.allowed(hi)}", field)
+    return value
+
+
+def check_keys(where: str, mapping: Any, field: str | None = None, error: type[ConfigError] = ConfigError) -> dict:
+    """``mapping`` as a dict whose keys are all strings; otherwise ``error`` naming ``where``."""
+    if not isinstance(mapping, Mapping):
+        raise error(f"{where} must be a table of settings, got {type(mapping).__name__}", field or where)
+    for key in mapping:
+        if not isinstance(key, str):
+            raise error(f"{where} has a key {key!r} that is not a string: keys are setting names", field or where)
+    return dict(mapping)
+
+
+__all__ = ["KINDS", "Spec", "check_keys", "check_value"]
