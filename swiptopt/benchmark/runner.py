@@ -98,12 +98,17 @@ def ompl_seed(task: dict[str, Any]) -> int:
     return int(task["seed"]) + 1
 
 
-def run_ompl_task(task: dict[str, Any]) -> dict[str, Any]:
-    """:func:`run_task` in a process where OMPL has not drawn a number yet: OMPL's seed is
-    set once, from the task, before anything plans (OMPL's rule: once per process, first)."""
+def seed_ompl(task: dict[str, Any]) -> None:
+    """Set OMPL's process-wide seed from the task. OMPL's rule: once per process, before
+    anything plans, so call it first thing in a fresh process."""
     from ompl import util as ou
 
     ou.RNG.setSeed(ompl_seed(task))
+
+
+def run_ompl_task(task: dict[str, Any]) -> dict[str, Any]:
+    """:func:`run_task` in a fresh process, OMPL seeded from the task first."""
+    seed_ompl(task)
     return run_task(task)
 
 

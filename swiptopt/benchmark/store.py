@@ -124,19 +124,16 @@ def _resolve_ref(git_dir: Path, common_dir: Path, ref: str, depth: int = 0) -> s
     return None
 
 
-def package_revision() -> str | None:
-    """The git commit swiptopt runs from, when its own directory is a git checkout; else None.
+def checkout_revision(root: Path | str) -> str | None:
+    """The commit checked out in the git working tree at ``root`` (its ``.git`` directory,
+    or a worktree's ``.git`` file), or None if ``root`` is not one.
 
     Read from the files under ``.git`` (``HEAD``, refs, ``packed-refs``, a worktree's
-    ``gitdir:``/``commondir``), never by running ``git``: a repository's configuration can
-    make git run commands (``core.fsmonitor``), and the user's working directory is none of
-    our business. No dirty flag: telling one needs git.
+    ``gitdir:`` and ``commondir``), never by running ``git``: a repository's configuration
+    can make git run commands (``core.fsmonitor``). No dirty flag: telling one needs git.
     """
-    import swiptopt
-
-    root = Path(swiptopt.__file__).resolve().parent.parent
     try:
-        git_dir = _git_dir(root)
+        git_dir = _git_dir(Path(root))
         if git_dir is None or not (git_dir / "HEAD").is_file():
             return None
         common_dir = git_dir
@@ -146,6 +143,14 @@ def package_revision() -> str | None:
         return _resolve_ref(git_dir, common_dir, "HEAD")
     except OSError:
         return None
+
+
+def package_revision() -> str | None:
+    """swiptopt's own git commit when it runs from a checkout (the directory holding the
+    package is a git working tree), else None. The user's working directory plays no part."""
+    import swiptopt
+
+    return checkout_revision(Path(swiptopt.__file__).resolve().parent.parent)
 
 
 def provenance() -> dict[str, Any]:
@@ -213,6 +218,12 @@ class ResultStore:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
             except OSError as exc:
                 raise StoreError(self.path, f"cannot create its directory: {exc.strerror}") from None
+        elif not readonly:
+            if not os.access(self.path, os.R_OK | os.W_OK):
+                raise StoreError(self.path, "is read-only here; 'swiptopt table' and 'swiptopt plot' can read it")
+            if not os.access(self.path.parent, os.W_OK | os.X_OK):
+                raise StoreError(self.path, f"cannot be written: its directory {str(self.path.parent)!r} is not writable "
+                                            "(SQLite keeps its write-ahead log beside the file)")
         self._check_header()
         self._db = self._connect()
         try:
@@ -242,8 +253,10 @@ class ResultStore:
                 db = sqlite3.connect(self.path, timeout=self.timeout_s, isolation_level=None)
             else:
                 db = self._connect_readonly()
-        except sqlite3.Error as exc:
+        except sqlite3.OperationalError as exc:
             raise StoreError(self.path, f"cannot be opened: {exc}") from None
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(self.path, f"is damaged or not an SQLite database ({exc})") from None
         return db
 
     def _connect_readonly(self) -> sqlite3.Connection:
@@ -323,6 +336,8 @@ class ResultStore:
         if not self.readonly:
             with self._guard("opening it for writing"):
                 self._db.execute("PRAGMA journal_mode=WAL")
+            with self._write("opening it for writing"):
+                pass  # waits here, before any work, if another process holds the store
 
     def _check_ours(self, version: int, tables: dict[str, list[str]]) -> None:
         if version != SCHEMA_VERSION:
