@@ -361,7 +361,7 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
     try:
-        cli.main(args=argv, prog_name="swiptopt", standalone_mode=False)
+        code = cli.main(args=argv, prog_name="swiptopt", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.exceptions.Abort:
@@ -376,7 +376,8 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         click.echo(f"error: {exc}".splitlines()[0], err=True)
         return EXIT_BAD_INPUT
-    return 0
+    # without standalone mode, click returns an Exit's code (e.g. EXIT_TASKS_FAILED)
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,6 +1,7 @@
 """Worker processes: one native thread each, gone with their parent, fresh processes that
 report what happened to them."""
 
+import importlib.util
 import json
 import os
 import signal
@@ -13,6 +14,8 @@ import pytest
 from swiptopt.benchmark import processes
 from swiptopt.benchmark.processes import limit_native_threads, qualified_name, run_in_fresh_process
 
+# skip without OMPL, without loading it into the test process
+needs_ompl = pytest.mark.skipif(importlib.util.find_spec("ompl") is None, reason="needs OMPL")
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
 
@@ -131,8 +134,8 @@ def test_limit_native_threads_limits_and_restores():
     assert [p["num_threads"] for p in threadpool_info()] == before
 
 
+@needs_ompl
 def test_ompl_seed_is_set_from_the_task_in_a_fresh_process():
-    pytest.importorskip("ompl")
     task = {"seed": 2001, "settings": {"tour_costs": "ompl"}}
     first = run_in_fresh_process(qualified_name(ompl_draws), task).value
     again = run_in_fresh_process(qualified_name(ompl_draws), task).value
