@@ -48,9 +48,12 @@ class NativeThreadLimit(contextlib.AbstractContextManager):
     ``with`` block) gives the pools their previous sizes back."""
 
     def __init__(self) -> None:
-        from threadpoolctl import threadpool_limits
-
-        self._pools = threadpool_limits(limits=1)
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # the bench extra; scikit-learn brings it too
+            self._pools = None
+        else:
+            self._pools = threadpool_limits(limits=1)
         self._torch: tuple[Any, int] | None = None
         torch = sys.modules.get("torch")
         if torch is not None:  # torch's intra-op pool is its own, not only OpenMP's
@@ -58,7 +61,8 @@ class NativeThreadLimit(contextlib.AbstractContextManager):
             torch.set_num_threads(1)
 
     def restore(self) -> None:
-        self._pools.restore_original_limits()
+        if self._pools is not None:
+            self._pools.restore_original_limits()
         if self._torch is not None:
             torch, threads = self._torch
             torch.set_num_threads(threads)

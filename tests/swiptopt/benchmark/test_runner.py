@@ -217,5 +217,37 @@ def test_compare_prints_the_same_tables_on_every_executor_and_every_run(tmp_path
         tables[name] = output.read_text()
         assert tables[name] == result.stdout
     assert "| k-means + TSP |" in tables["workers1"] and "×" in tables["workers1"]
-    different = [name for name, text in tables.items() if text != tables["workers1"]]
-    assert not different, f"tables differ from --workers 1: {different}"
+    reference = tables["workers1"].splitlines()
+    differences = {name: [line for line in text.splitlines() if line not in reference]
+                   for name, text in tables.items() if text != tables["workers1"]}
+    assert not differences, f"rows that differ from the first --workers 1 run: {differences}"
+
+
+# ------------------------------------------------------------------ native threads
+
+
+def _report_threads(batch):
+    from tests.swiptopt.benchmark.test_processes import thread_report
+
+    return [{**thread_report(None), "pid": os.getpid()} for _ in batch]
+
+
+def test_pool_workers_run_one_native_thread_per_pool(monkeypatch):
+    monkeypatch.setattr(runner, "run_batch", _report_threads)  # forked workers see it
+    reports = [r for batch in runner._local([[{}]] * 6, 2, ("sklearn.cluster",)) for r in batch]
+    assert len(reports) == 6 and all(r["pid"] != os.getpid() for r in reports)
+    for r in reports:
+        assert r["omp"] == "1" and r["pools"] and set(r["pools"]) == {1}, r
+
+
+def test_dask_workers_run_one_native_thread_per_pool():
+    from dask.distributed import Client, LocalCluster
+
+    from swiptopt.benchmark.dask_plugin import PrepareWorker
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
+                      silence_logs=50) as cluster, Client(cluster) as client:
+        client.register_plugin(PrepareWorker(("sklearn.cluster",), watch_parent=True))
+        reports = client.gather([client.submit(_report_threads, [i], pure=False) for i in range(4)])
+    for (r,) in reports:
+        assert r["omp"] == "1" and r["pools"] and set(r["pools"]) == {1}, r
