@@ -112,7 +112,8 @@ def test_ompl_tasks_run_in_fresh_processes_and_repeat(tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "run_task", lambda task: here.append(task) or REAL_RUN_TASK(task))
     experiment = Experiment.from_dict({
         "name": "ompl", "layouts": 1, "episodes": 1, "scenario": {"preset": "paper", "n_nodes": 6},
-        "algorithms": {"kmeans_tsp": {"tour_costs": "ompl", "ompl_time_limit_s": 0.05}},
+        # two hover points: the tour is enumerated, so only OMPL could make the runs differ
+        "algorithms": {"kmeans_tsp": {"tour_costs": "ompl", "ompl_time_limit_s": 0.05, "k": 2}},
     })
     results = []
     for name in ("a", "b"):
