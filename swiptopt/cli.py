@@ -109,6 +109,7 @@ def _report_failures(console, failures) -> None:  # type: ignore[no-untyped-def]
     for reason, count in Counter(f.reason for f in failures).most_common():
         console.print(f"  {count} x {reason}", markup=False, highlight=False)
 
+
 _store_option = click.option(
     "--store", "store_path", type=click.Path(dir_okay=False), default=None,
     help="SQLite results file (default: results/swiptopt.sqlite).",
@@ -168,7 +169,8 @@ def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, outp
 
 
 def _missing_note(experiment, store, missing: int) -> str:  # type: ignore[no-untyped-def]
-    """"k tasks failed: reason; m tasks missing" for the experiment's tasks without a result."""
+    """The title's note on the experiment's tasks without a result: ``k tasks failed:
+    reason; m tasks missing``."""
     failed = store.failures({t.key for t in experiment.tasks()})
     parts = []
     if failed:

@@ -39,7 +39,7 @@ PARENT_POLL_S = 0.5
 ORPHAN_EXIT = 70
 
 _PR_SET_PDEATHSIG = 1
-_watchdog_for: int | None = None
+_watchdog_for: tuple[int, int] | None = None
 _watchdog_lock = threading.Lock()
 
 
@@ -120,9 +120,10 @@ def die_with_parent(parent_pid: int | None = None) -> None:
     if os.getppid() != parent_pid:
         os._exit(ORPHAN_EXIT)
     with _watchdog_lock:
-        if _watchdog_for == parent_pid:
+        # keyed by our own pid too: a forked child inherits this variable but not the thread
+        if _watchdog_for == (os.getpid(), parent_pid):
             return
-        _watchdog_for = parent_pid
+        _watchdog_for = (os.getpid(), parent_pid)
     threading.Thread(target=_watch_parent, args=(parent_pid,), name="swiptopt-parent-watchdog", daemon=True).start()
 
 

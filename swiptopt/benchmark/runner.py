@@ -210,13 +210,14 @@ def _check_scheduler(scheduler: str, limit: int) -> None:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
     try:
         scheme, location = parse_address(scheduler, strict=False)
-        if scheme not in DASK_SCHEMES:
-            raise ConfigError(f"--scheduler {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
-                              "scheduler")
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
+    if scheme not in DASK_SCHEMES:
+        raise ConfigError(f"--scheduler {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
+                          "scheduler")
+    try:
         host, port = parse_host_port(location)
     except (ValueError, TypeError) as exc:
-        if isinstance(exc, ConfigError):
-            raise
         raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
     if not host or not 1 <= port <= 65535:
         raise ConfigError(f"--scheduler {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
