@@ -302,13 +302,14 @@ class ResultStore:
             try:
                 yield self._db
             except BaseException:
-                self._db.execute("ROLLBACK")
+                if self._db.in_transaction:  # SQLite may have rolled back already
+                    self._db.execute("ROLLBACK")
                 raise
             self._db.execute("COMMIT")
 
     def _tables(self) -> dict[str, list[str]]:
         names = [r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
-        return {n: [c[1] for c in self._db.execute(f"PRAGMA table_info({json.dumps(n)})")]
+        return {n: [c[0] for c in self._db.execute("SELECT name FROM pragma_table_info(?) ORDER BY cid", (n,))]
                 for n in names if n != "sqlite_sequence"}
 
     def _identity(self) -> tuple[int, int, dict[str, list[str]]]:
