@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import faulthandler
 import importlib
 import json
 import os
@@ -193,22 +194,24 @@ def run_in_fresh_process(target: str, argument: Any, *, modules: Iterable[str] =
             message = None
         if isinstance(message, dict) and ("value" in message or "error" in message):
             return FreshOutcome(message.get("value"), message.get("error"), message.get("detail", ""))
-    if proc.returncode < 0:
+    if proc.returncode < 0:  # stderr holds faulthandler's traceback: the detail, not the reason
         try:
             name = signal.Signals(-proc.returncode).name
         except ValueError:
             name = f"signal {-proc.returncode}"
-        how = f"the task's process was killed by {name}"
+        error = f"the task's process was killed by {name}"
     else:
-        how = f"the task's process exited with status {proc.returncode} without a result"
-    tail = last_words.splitlines()[-1] if last_words else ""
-    return FreshOutcome(error=how + (f" ({tail})" if tail else ""), detail=last_words[-4000:])
+        tail = last_words.splitlines()[-1][:200] if last_words else ""
+        error = f"the task's process exited with status {proc.returncode} without a result" + (
+            f" ({tail})" if tail else "")
+    return FreshOutcome(error=error, detail=last_words[-8000:])
 
 
 def fresh_process_main(payload: dict[str, Any]) -> None:
     """The child's side of :func:`run_in_fresh_process` (reads nothing else, prints one JSON
     message on the original stdout; anything the task prints goes to stderr)."""
     die_with_parent(payload["parent_pid"])
+    faulthandler.enable()  # a native crash leaves its Python traceback on stderr, for the detail
     result_stream = os.fdopen(os.dup(1), "w", encoding="utf-8")
     os.dup2(2, 1)
     sys.stdout = sys.stderr

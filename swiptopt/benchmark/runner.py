@@ -239,10 +239,7 @@ def _isolated(tasks: list[dict[str, Any]], workers: int) -> Iterator[list[dict[s
 
 
 def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
-    if workers <= 1:
-        for batch in batches:
-            yield run_batch(batch)
-        return
+    """Batches on ``workers`` local processes (one too: a native crash must not end the run)."""
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
@@ -397,10 +394,11 @@ def execute(
     if scheduler:
         stream = _dask(batches, scheduler, modules)
     else:
-        import_modules(modules)  # before the limit, so that it covers their pools
+        # load the native libraries, limit their pools, then warm up: the forked workers
+        # inherit all of it, and no OpenMP pool has started threads that a fork would break
+        import_modules(modules)
         limit = limit_native_threads()
-        if workers > 1:
-            warm_up(todo_dicts)
+        warm_up(todo_dicts)
         stream = _local(batches, workers, modules)
     failures: list[Failure] = []
     done = 0
