@@ -6,7 +6,9 @@ missing file, a wrong option) into one line on stderr and exit code 2, never a t
 
 from __future__ import annotations
 
+import os
 import sys
+from collections import Counter
 from pathlib import Path
 
 import click
@@ -15,6 +17,8 @@ from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import PRESETS, Scenario, ScenarioError
 
 EXIT_BAD_INPUT = 2
+#: Exit code of a run that finished but recorded failed tasks (the table is still printed).
+EXIT_TASKS_FAILED = 1
 
 
 def load_scenario(spec: str) -> Scenario:
@@ -56,6 +60,56 @@ def scenario_show(spec: str) -> None:
 
 # ------------------------------------------------------------------ benchmark
 
+
+def check_output_file(path: str | None, option: str) -> None:
+    """Refuse, before anything runs, an output file that cannot be written: a directory, a
+    missing or non-directory parent, or no write permission."""
+    if path is None:
+        return
+    target = Path(path)
+    parent = target.parent
+    if target.is_dir():
+        raise ConfigError(f"{option} {path}: is a directory; give a file name", option)
+    if not parent.exists():
+        raise ConfigError(f"{option} {path}: the directory {str(parent)!r} does not exist", option)
+    if not parent.is_dir():
+        raise ConfigError(f"{option} {path}: {str(parent)!r} is a file, not a directory", option)
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ConfigError(f"{option} {path}: the file is not writable", option)
+    if not target.exists() and not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"{option} {path}: the directory {str(parent)!r} is not writable", option)
+
+
+def check_output_dir(path: str, option: str) -> None:
+    """Refuse, before anything runs, an output directory that cannot be made or written."""
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise ConfigError(f"{option} {path}: is a file, not a directory", option)
+    ancestor = target
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ConfigError(f"{option} {path}: {str(ancestor)!r} is a file, not a directory", option)
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ConfigError(f"{option} {path}: the directory {str(ancestor)!r} is not writable", option)
+
+
+def _write_output(path: str, text: str) -> None:
+    try:
+        Path(path).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"--output {path}: cannot write: {exc.strerror}", "output") from None
+
+
+def _report_failures(console, failures) -> None:  # type: ignore[no-untyped-def]
+    """How many tasks failed and why, most common reason first."""
+    if not failures:
+        return
+    console.print(f"{len(failures)} task{'s' * (len(failures) != 1)} failed (recorded in the store; a rerun retries them):")
+    for reason, count in Counter(f.reason for f in failures).most_common():
+        console.print(f"  {count} x {reason}", markup=False, highlight=False)
+
+
 _store_option = click.option(
     "--store", "store_path", type=click.Path(dir_okay=False), default=None,
     help="SQLite results file (default: results/swiptopt.sqlite).",
@@ -81,11 +135,14 @@ def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, outp
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swiptopt.benchmark.runner import execute
+    from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     if quick:
         experiment = experiment.quick()
+    # every path and address is checked before the store opens and any task runs
+    check_output_file(output, "--output")
+    check_run_options(workers, scheduler)
     console = Console(stderr=True)
     with ResultStore(store_path or DEFAULT_STORE) as store:
         with Progress(
@@ -98,26 +155,51 @@ def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, outp
                 progress.update(bar, completed=done, total=todo)
 
             report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update)
+        failed = f", {report.failed} failed" if report.failed else ""
         console.print(
-            f"{report.total} tasks: {report.cached} already stored, {report.ran} run in {report.seconds:.1f} s "
+            f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in {report.seconds:.1f} s "
             f"-> {store.path}"
         )
-        _print_table(experiment, store, fmt, output)
+        text = _print_table(experiment, store, fmt)
+    if output:
+        _write_output(output, text)
+    _report_failures(console, report.failures)
+    if report.failed:
+        raise click.exceptions.Exit(EXIT_TASKS_FAILED)
 
 
-def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-untyped-def]
+def _missing_note(experiment, store, missing: int) -> str:  # type: ignore[no-untyped-def]
+    """The title's note on the experiment's tasks without a result: ``k tasks failed:
+    reason; m tasks missing``."""
+    failed = store.failures({t.key for t in experiment.tasks()})
+    parts = []
+    if failed:
+        reasons = Counter(failed.values()).most_common()
+        others = f" (and {len(reasons) - 1} other reasons)" if len(reasons) > 1 else ""
+        parts.append(f"{len(failed)} task{'s' * (len(failed) != 1)} failed: {reasons[0][0]}{others}")
+    if missing > len(failed):
+        parts.append(f"{missing - len(failed)} tasks missing")
+    return "; ".join(parts)
+
+
+def _print_table(experiment, store, fmt) -> str:  # type: ignore[no-untyped-def]
+    """Print the experiment's tables; returns them as text for --output (Markdown for the
+    terminal format)."""
     from rich.console import Console
 
     from swiptopt.benchmark import tables
 
     rows, missing = tables.aggregate(experiment, store)
-    title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({missing} tasks missing)" if missing else "")
+    note = _missing_note(experiment, store, missing)
+    title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({note})" if note else "")
     if fmt == "terminal":
         Console(width=max(160, Console().width)).print(tables.to_rich(rows, title))
         text = tables.to_markdown(rows)  # what --output writes
     else:
         text = tables.render(rows, fmt)
         click.echo(text, nl=False)
+        if note:
+            click.echo(f"{experiment.name}: {note}", err=True)
     pairs = tables.paired(experiment, store)
     if pairs:
         paired_title = tables.paired_title(experiment)
@@ -129,10 +211,7 @@ def _print_table(experiment, store, fmt, output) -> None:  # type: ignore[no-unt
             click.echo("")  # a blank line ends the first table
             click.echo(paired_text, nl=False)
         text += "\n" + paired_text
-    if output:
-        from pathlib import Path
-
-        Path(output).write_text(text, encoding="utf-8")
+    return text
 
 
 def _builtin_list() -> list[tuple[str, str]]:
@@ -218,22 +297,30 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
 
     from swiptopt.benchmark import plots
     from swiptopt.benchmark.experiment import builtin_experiments
-    from swiptopt.benchmark.runner import execute
+    from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
+    check_output_dir(outdir, "--outdir")
+    check_run_options(workers, scheduler)
     console = Console(stderr=True)
-    written = plots.coverage_figure(outdir, quick=quick)
-    console.print(f"coverage probability -> {', '.join(map(str, written))}")
+    failures = []
     with ResultStore(store_path or DEFAULT_STORE) as store:
+        written = plots.coverage_figure(outdir, quick=quick)
+        console.print(f"coverage probability -> {', '.join(map(str, written))}")
         for name, experiment in builtin_experiments().items():
             if not experiment.figure:
                 continue
             if quick:
                 experiment = experiment.quick()
             report = execute(experiment, store, workers=workers, scheduler=scheduler)
+            failures += report.failures
             figure = plots.experiment_figure(experiment, store, outdir)
             drawn = ", ".join(map(str, figure.paths)) or f"no figure: {figure.skipped}"
-            console.print(f"{name}: {report.ran} run, {report.cached} stored -> {drawn}")
+            failed = f", {report.failed} failed" if report.failed else ""
+            console.print(f"{name}: {report.ran} run{failed}, {report.cached} stored -> {drawn}")
+    _report_failures(console, failures)
+    if failures:
+        raise click.exceptions.Exit(EXIT_TASKS_FAILED)
 
 
 @cli.command()
@@ -243,15 +330,16 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
 @click.option("--output", type=click.Path(dir_okay=False), default=None)
 def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
     """Print the tables of the experiments recorded in a results store."""
-    from swiptopt.benchmark.experiment import Experiment
     from swiptopt.benchmark.store import ResultStore
 
-    with ResultStore(store_path, create=False) as store:
-        runs = [r for r in store.runs() if name is None or r["experiment"] == name]
-        if not runs:
+    check_output_file(output, "--output")
+    with ResultStore(store_path, readonly=True) as store:
+        experiments = store.experiments(name)
+        if not experiments:
             raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}", "experiment")
-        for r in runs:
-            _print_table(Experiment(**r["config"]), store, fmt, output)
+        text = "\n".join(_print_table(experiment, store, fmt) for experiment in experiments)
+    if output:
+        _write_output(output, text)
 
 
 @cli.command()
@@ -260,13 +348,12 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
 def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
     """Draw the figure of every experiment in a results store that defines one."""
     from swiptopt.benchmark import plots
-    from swiptopt.benchmark.experiment import Experiment
     from swiptopt.benchmark.store import ResultStore
 
-    with ResultStore(store_path, create=False) as store:
+    check_output_dir(outdir, "--outdir")
+    with ResultStore(store_path, readonly=True) as store:
         drawn = []
-        for r in store.runs():
-            experiment = Experiment(**r["config"])
+        for experiment in store.experiments():
             if not experiment.figure:
                 continue
             figure = plots.experiment_figure(experiment, store, outdir)
@@ -281,7 +368,7 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
     try:
-        cli.main(args=argv, prog_name="swiptopt", standalone_mode=False)
+        code = cli.main(args=argv, prog_name="swiptopt", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.exceptions.Abort:
@@ -296,7 +383,8 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         click.echo(f"error: {exc}".splitlines()[0], err=True)
         return EXIT_BAD_INPUT
-    return 0
+    # without standalone mode, click returns an Exit's code (e.g. EXIT_TASKS_FAILED)
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,6 +6,18 @@ evaluation seeds, and returns per-episode records with the scenario's bounds. Ev
 task computes comes from its configuration and seed, so the numbers do not depend on where
 it ran. Tasks go out in small batches; every finished task is committed to the store as
 soon as its batch returns.
+
+What can go wrong, and what happens then:
+
+- A task that raises is a *failure*: recorded in the store with its reason (a rerun
+  retries it), and the other tasks go on.
+- A task that uses OMPL (``tour_costs = "ompl"``) runs in a fresh process, whose
+  process-wide OMPL seed is set from the task before anything plans: its numbers do not
+  depend on which tasks ran before it, and a crash inside OMPL is that task's failure.
+- A worker that dies (any native crash) loses only the tasks it held: they are run again
+  one per fresh process, so the one that crashes is recorded as failed and the rest finish.
+- Every worker runs one thread per native pool and exits when the run's process dies
+  (:mod:`swiptopt.benchmark.processes`).
 """
 
 from __future__ import annotations
@@ -13,12 +25,39 @@ from __future__ import annotations
 import math
 import os
 import time
+import traceback
+from collections import deque
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
-from swiptopt.errors import ConfigError
 from swiptopt.benchmark.experiment import EVALUATION_OFFSET, Experiment, Task
+from swiptopt.benchmark.processes import (
+    die_with_parent,
+    import_modules,
+    limit_native_threads,
+    one_line,
+    prepare_worker,
+    qualified_name,
+    run_in_fresh_process,
+)
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.errors import ConfigError
+
+#: Modules with the native libraries of each algorithm family: imported before the thread
+#: limit and before workers start, so the limit covers their pools and forked workers
+#: share them.
+NATIVE_MODULES = {
+    "rl": ("numba",),
+    "planner": ("numba", "sklearn.cluster", "ortools.constraint_solver.pywrapcp", "ortools.sat.python.cp_model",
+                "cvxpy"),
+}
+#: Local worker processes (``--workers`` or ``local:N``) allowed per core of the machine.
+MAX_WORKERS_PER_CORE = 4
+#: Dask schemes that reach another process.
+DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+# ------------------------------------------------------------------------ one task
 
 
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
@@ -48,9 +87,239 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def uses_ompl(task: dict[str, Any]) -> bool:
+    """Whether the task plans with OMPL (and so must run in a fresh process)."""
+    return task["settings"].get("tour_costs") == "ompl"
+
+
+def ompl_seed(task: dict[str, Any]) -> int:
+    """OMPL's process-wide seed for a task: its own seed, shifted past 0 (which OMPL
+    replaces by 1)."""
+    return int(task["seed"]) + 1
+
+
+def seed_ompl(task: dict[str, Any]) -> None:
+    """Set OMPL's process-wide seed from the task. OMPL's rule: once per process, before
+    anything plans, so call it first thing in a fresh process."""
+    from ompl import util as ou
+
+    ou.RNG.setSeed(ompl_seed(task))
+
+
+def run_ompl_task(task: dict[str, Any]) -> dict[str, Any]:
+    """:func:`run_task` in a fresh process, OMPL seeded from the task first."""
+    seed_ompl(task)
+    return run_task(task)
+
+
+def _failure(task: dict[str, Any], reason: str, detail: str = "") -> dict[str, Any]:
+    return {"key": Task(**task).key, "task": task, "error": reason, "detail": detail}
+
+
+def _modules_for(tasks: list[dict[str, Any]]) -> tuple[str, ...]:
+    from swiptopt.benchmark.algorithms import ALGORITHMS
+
+    families = {ALGORITHMS[t["algorithm"]].family for t in tasks if t["algorithm"] in ALGORITHMS}
+    return tuple(dict.fromkeys(m for family in sorted(families) for m in NATIVE_MODULES.get(family, ())))
+
+
+def run_isolated(task: dict[str, Any]) -> dict[str, Any]:
+    """Run one task in a fresh process: its result, or a failure saying how it failed
+    (an exception, or the signal that killed the process)."""
+    target = run_ompl_task if uses_ompl(task) else run_task
+    outcome = run_in_fresh_process(qualified_name(target), task, modules=_modules_for([task]))
+    if outcome.error is not None:
+        return _failure(task, outcome.error, outcome.detail)
+    return outcome.value
+
+
+def run_outcome(task: dict[str, Any]) -> dict[str, Any]:
+    """Run one task here (in a fresh process if it uses OMPL); an exception becomes a
+    failure record (``"error"``, ``"detail"``) instead of stopping the run."""
+    if uses_ompl(task):
+        return run_isolated(task)
+    try:
+        return run_task(task)
+    except Exception as exc:  # recorded with its traceback; the run goes on
+        return _failure(task, one_line(exc), traceback.format_exc())
+
+
 def run_batch(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Run tasks one after the other (a unit of work sent to a worker)."""
-    return [run_task(t) for t in tasks]
+    return [run_outcome(t) for t in tasks]
+
+
+def run_batch_isolated(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Run tasks one after the other, each in a fresh process (after a worker died)."""
+    return [run_isolated(t) for t in tasks]
+
+
+def warm_up(tasks: list[dict[str, Any]]) -> None:
+    """Run each algorithm of ``tasks`` once on a small scenario, so that workers forked
+    afterwards inherit the compiled kernel, the solvers' first-call set-up and every import
+    instead of each paying for them. The results are thrown away."""
+    from swiptopt.scenario import Scenario
+
+    small = Scenario.from_dict({"preset": "paper", "n_nodes": 4, "episode_steps": 10}).to_dict()
+    seen: set[str] = set()
+    for task in tasks:
+        if task["algorithm"] in seen or uses_ompl(task):
+            continue
+        seen.add(task["algorithm"])
+        settings = dict(task["settings"])
+        if settings.get("train_episodes"):
+            settings["train_episodes"] = 1
+        try:
+            run_task({**task, "scenario": small, "settings": settings, "episodes": 1})
+        except Exception:
+            pass  # the real task meets the same error and records it
+
+
+# ------------------------------------------------------------------ schedulers
+
+
+def check_run_options(workers: int | None, scheduler: str | None) -> int:
+    """Validate ``--workers`` and ``--scheduler`` (before any task runs); returns the number
+    of local workers to use (ignored with a scheduler)."""
+    cores = os.cpu_count() or 1
+    limit = MAX_WORKERS_PER_CORE * cores
+    if workers is not None and scheduler is not None:
+        raise ConfigError("give --workers (local processes) or --scheduler (Dask), not both", "workers")
+    if workers is not None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= limit:
+            raise ConfigError(
+                f"--workers {workers} must be an integer in [1, {limit}] "
+                f"({MAX_WORKERS_PER_CORE} per core, {cores} cores)", "workers")
+    if scheduler is not None:
+        _check_scheduler(scheduler, limit)
+    return workers if workers is not None else cores
+
+
+def _check_scheduler(scheduler: str, limit: int) -> None:
+    usage = "use local:N (a local Dask cluster of N workers) or a scheduler address such as tcp://HOST:PORT"
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        raise ConfigError(f"--scheduler {scheduler!r} is empty: {usage}", "scheduler")
+    if scheduler.startswith("local:"):
+        count = scheduler.split(":", 1)[1]
+        if not count.isdigit() or not 1 <= int(count) <= limit:
+            raise ConfigError(f"--scheduler {scheduler!r}: N must be an integer in [1, {limit}]", "scheduler")
+        return
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+    except ImportError:
+        raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
+    try:
+        scheme, location = parse_address(scheduler, strict=False)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
+    if scheme not in DASK_SCHEMES:
+        raise ConfigError(f"--scheduler {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
+                          "scheduler")
+    try:
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
+    if not host or not 1 <= port <= 65535:
+        raise ConfigError(f"--scheduler {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
+
+
+def _start_pool_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
+    die_with_parent(parent_pid)
+    prepare_worker(modules)
+
+
+def _isolated(tasks: list[dict[str, Any]], workers: int) -> Iterator[list[dict[str, Any]]]:
+    """Each task in its own fresh process, ``workers`` at a time."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    # each thread waits for its child to the end (a Linux child dies with its thread)
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="swiptopt-isolated") as pool:
+        for future in as_completed([pool.submit(run_isolated, t) for t in tasks]):
+            yield [future.result()]
+
+
+def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
+    """Batches on ``workers`` local processes (one too: a native crash must not end the run)."""
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    # fork shares the imported model, the warmed-up solvers and numba's loaded code; spawn
+    # where fork is unavailable
+    context = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    queue = deque(batches)
+    while queue:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_pool_worker,
+                                   initargs=(os.getpid(), modules))
+        running: dict[Any, list[dict[str, Any]]] = {}
+        lost: list[list[dict[str, Any]]] = []
+        try:
+            while (queue or running) and not lost:
+                while queue and len(running) < 2 * workers:  # a short queue: a crash strands little
+                    batch = queue.popleft()
+                    running[pool.submit(run_batch, batch)] = batch
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in done:
+                    batch = running.pop(future)
+                    if isinstance(future.exception(), BrokenProcessPool):
+                        lost.append(batch)
+                    else:
+                        yield future.result()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        # a worker died: keep what finished meanwhile, then find the culprit task by running
+        # each task it may have held in a fresh process
+        for future, batch in running.items():
+            if not future.cancelled() and future.exception() is None:
+                yield future.result()
+            else:
+                lost.append(batch)
+        if lost:
+            yield from _isolated([t for batch in lost for t in batch], workers)
+
+
+def _dask(batches: list[list[dict[str, Any]]], scheduler: str, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
+    from swiptopt.benchmark.dask_plugin import PrepareWorker
+
+    cluster = None
+    if scheduler.startswith("local:"):
+        cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None, silence_logs=50)
+        address: Any = cluster
+    else:
+        address = scheduler
+    try:
+        client = Client(address, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}", "scheduler") from None
+    try:
+        client.register_plugin(PrepareWorker(modules, watch_parent=cluster is not None))
+        pending = {client.submit(run_batch, b, pure=False): (b, False) for b in batches}
+        stream = as_completed(pending)
+        for future in stream:
+            batch, isolated = pending.pop(future)
+            try:
+                yield future.result()
+            except Exception as exc:  # the worker died under the batch (KilledWorker, a crash)
+                if isolated:
+                    yield [_failure(t, f"the Dask worker died running it: {one_line(exc)}") for t in batch]
+                else:
+                    retry = client.submit(run_batch_isolated, batch, pure=False)
+                    pending[retry] = (batch, True)
+                    stream.add(retry)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+# ------------------------------------------------------------------------- a run
 
 
 def _batches(tasks: list[Task], workers: int) -> list[list[dict[str, Any]]]:
@@ -62,63 +331,30 @@ def _batches(tasks: list[Task], workers: int) -> list[list[dict[str, Any]]]:
 
 
 @dataclass(frozen=True)
+class Failure:
+    """A task that could not run, and why (one line)."""
+
+    key: str
+    algorithm: str
+    point: dict[str, Any]
+    seed: int
+    reason: str
+
+
+@dataclass(frozen=True)
 class RunReport:
-    """What a run did: tasks in the experiment, found already stored, and newly run."""
+    """What a run did: tasks in the experiment, found already stored, run now (of which
+    ``failures`` failed), and the wall time."""
 
     total: int
     cached: int
     ran: int
     seconds: float
+    failures: tuple[Failure, ...] = ()
 
-
-def _local(batches: list[list[dict[str, Any]]], workers: int) -> Iterator[list[dict[str, Any]]]:
-    if workers <= 1:
-        for batch in batches:
-            yield run_batch(batch)
-        return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    # fork shares the imported model and numba's loaded code; spawn where fork is unsafe
-    method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method)) as pool:
-        futures = [pool.submit(run_batch, b) for b in batches]
-        for future in as_completed(futures):
-            yield future.result()
-
-
-def _dask(batches: list[list[dict[str, Any]]], scheduler: str) -> Iterator[list[dict[str, Any]]]:
-    try:
-        from dask.distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
-    cluster = None
-    if scheduler.startswith("local:"):
-        try:
-            n = int(scheduler.split(":", 1)[1])
-        except ValueError:
-            raise ConfigError(f"--scheduler {scheduler!r}: use local:N with N workers", "scheduler") from None
-        if n < 1:
-            raise ConfigError(f"--scheduler {scheduler!r}: N must be at least 1", "scheduler")
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=50)
-        address: Any = cluster
-    else:
-        address = scheduler
-    try:
-        client = Client(address, timeout="20s")
-    except OSError as exc:
-        if cluster is not None:
-            cluster.close()
-        raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}", "scheduler") from None
-    try:
-        futures = [client.submit(run_batch, b, pure=False) for b in batches]
-        for future in as_completed(futures):
-            yield future.result()
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    @property
+    def failed(self) -> int:
+        return len(self.failures)
 
 
 def execute(
@@ -133,9 +369,11 @@ def execute(
 
     ``workers``: local processes (default: the machine's cores); ``scheduler``: a Dask
     scheduler address, or ``local:N`` for a local Dask cluster on loopback.
-    ``on_progress(done, todo)`` is called after every committed task.
+    ``on_progress(done, todo)`` is called after every committed task. A task that fails is
+    recorded in the store (not as a result) and in the report; the others go on.
     """
     start = time.perf_counter()
+    workers = check_run_options(workers, scheduler)
     tasks = experiment.tasks()
     stored = store.keys()
     unique: dict[str, Task] = {}
@@ -143,20 +381,42 @@ def execute(
         if t.key not in stored:
             unique.setdefault(t.key, t)
     todo = list(unique.values())
+    total = len({t.key for t in tasks})
     store.add_run(experiment.name, experiment.to_dict())
-    workers = workers if workers is not None else (os.cpu_count() or 1)
-    if workers < 1:
-        raise ConfigError(f"--workers {workers} must be at least 1", "workers")
-    batches = _batches(todo, workers if scheduler is None else 4)
-    stream = _dask(batches, scheduler) if scheduler else _local(batches, workers)
-    done = 0
     if on_progress:
         on_progress(0, len(todo))
-    for results in stream:
-        for result in results:
-            store.put(result)
-            done += 1
-            if on_progress:
-                on_progress(done, len(todo))
-    total = len({t.key for t in tasks})
-    return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start)
+    if not todo:
+        return RunReport(total, total, 0, time.perf_counter() - start)
+    todo_dicts = [t.to_dict() for t in todo]
+    batches = _batches(todo, workers if scheduler is None else 4)
+    modules = _modules_for(todo_dicts)
+    limit = None
+    if scheduler:
+        stream = _dask(batches, scheduler, modules)
+    else:
+        # load the native libraries, limit their pools, then warm up: the forked workers
+        # inherit all of it, and no OpenMP pool has started threads that a fork would break
+        import_modules(modules)
+        limit = limit_native_threads()
+        warm_up(todo_dicts)
+        stream = _local(batches, workers, modules)
+    failures: list[Failure] = []
+    done = 0
+    try:
+        for outcomes in stream:
+            for outcome in outcomes:
+                if "error" in outcome:
+                    store.put_failure(outcome)
+                    task = outcome["task"]
+                    failures.append(Failure(outcome["key"], task["algorithm"], task["point"], task["seed"],
+                                            outcome["error"]))
+                else:
+                    store.put(outcome)
+                done += 1
+                if on_progress:
+                    on_progress(done, len(todo))
+    finally:
+        stream.close()
+        if limit is not None:
+            limit.restore()
+    return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start, tuple(failures))
