@@ -11,7 +11,8 @@ Everything a user needs is importable from here::
   :func:`optimise_dwell_and_split` (convex program, cvxpy);
 - bounds: :func:`upper_bound`, :func:`exact_optimum` (dynamic programming on tiny scenarios);
 - planners that run in the environment: :class:`KMeansTspPlanner`,
-  :class:`LawnmowerPlanner`, :class:`GreedyPlanner`, :class:`RateGreedyPlanner`;
+  :class:`LawnmowerPlanner`, :class:`GreedyPlanner`, :class:`RateGreedyPlanner`,
+  :class:`RewardKMeansTspPlanner` (k-means + TSP with its choices scored by the reward);
 - the optimum as the reference: :func:`solve_optimum` (the episode as a mixed-integer
   program, HiGHS: best walk, proven bound, gap) and its policy :class:`MilpPlanner`; the
   per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`.
@@ -33,6 +34,7 @@ from planners.power_split import (
     optimise_dwell_and_split,
 )
 from planners.rate_greedy import RateGreedyPlanner, rate_greedy_actions
+from planners.reward_tour import RewardKMeansTspPlanner
 from planners.service import StepModel, step_model
 from planners.tsp import TspResult, held_karp, solve_tsp, tour_length
 from planners.walk_search import polish_walk
@@ -52,6 +54,7 @@ __all__ = [
     "Plan",
     "PowerSplitResult",
     "RateGreedyPlanner",
+    "RewardKMeansTspPlanner",
     "StepModel",
     "Stop",
     "TspResult",

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from planners.grid import bfs_distances
-from planners.policies import _REVERSE, Plan, _Executor
+from planners.policies import Plan, _Executor
 from planners.service import StepModel, step_model
+from planners.walk_search import Walks
 from swiptopt import kernel as K
 
 
@@ -27,36 +27,25 @@ class _RateChooser:
 
     def __init__(self, model: StepModel):
         self.model = model
-        self._dist: dict[int, np.ndarray] = {}
-        self._trees: dict[int, np.ndarray] = {}
+        self.walks = Walks(model)
         moves = model.step_cost[model.next_cell != np.arange(model.n_cells)[:, None]]
         # the penalty of one move; with a current the moves differ and this is their mean
         self._move_cost = float(moves.mean()) if moves.size else 0.0
         self._covering = np.flatnonzero(np.diff(model.cov_ptr) > 0)
-
-    def distances(self, cell: int) -> np.ndarray:
-        dist = self._dist.get(cell)
-        if dist is None:
-            dist, _ = bfs_distances(self.model.next_cell, cell)
-            self._dist[cell] = dist
-        return dist
 
     def action(self, cell: int, target: int) -> int:
         """The move from ``cell`` along a shortest path to ``target`` (the cheapest stay
         when they are the same cell)."""
         if target == cell:
             return int(self.model.stay_action[cell])
-        tree = self._trees.get(target)
-        if tree is None:
-            tree = self._trees[target] = bfs_distances(self.model.next_cell, target)[1]
-        return int(_REVERSE[tree[0, cell]])
+        return self.walks.step_toward(cell, target)
 
     def target(self, cell: int, steps_left: int, data_left: np.ndarray, room_left: np.ndarray) -> int:
         """The cell to head for (``cell`` itself: stay), given what the nodes still need."""
         m = self.model
         if steps_left <= 0 or self._covering.size == 0:
             return cell
-        dist = self.distances(cell)[self._covering]
+        dist = self.walks.distances(cell)[self._covering]
         reachable = (dist >= 0) & (dist <= steps_left)
         if not reachable.any():
             return cell

@@ -96,6 +96,22 @@ class StepModel:
         """Whether serving every node (which ends the episode) is possible at all."""
         return bool(self.coverable().all())
 
+    def delivered(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(n_nodes,) bits and joules (uncapped) from ``counts[c]`` steps ending in each cell c."""
+        per_pair = counts[self.cell_of_pair()]
+        bits = np.bincount(self.cov_node, weights=per_pair * self.bits, minlength=self.n_nodes)
+        joules = np.bincount(self.cov_node, weights=per_pair * self.joules, minlength=self.n_nodes)
+        return bits, joules
+
+    def service_value(self, counts: np.ndarray) -> float:
+        """The service part of the return of a walk with ``counts[c]`` steps ending in cell c
+        (each node capped at what it holds and can store; order does not matter)."""
+        bits, joules = self.delivered(counts)
+        return float(
+            self.data_weight * np.minimum(bits, self.data_bits).sum()
+            + self.energy_weight * np.minimum(joules, self.room_j).sum()
+        )
+
     def serve(self, cell: int, data_left: np.ndarray, room_left: np.ndarray) -> float:
         """Serve the nodes covered from ``cell`` for one step, updating the two (n_nodes,)
         arrays in place (the kernel's rule: each node gets min(what is left, the step's

@@ -2,13 +2,14 @@
 
 A walk is written as stops, each a cell and a number of service steps there (the arrival
 step counts as the first); between stops the AUV takes a shortest grid path, and after the
-last stop it stays where it is. The search improves a walk by hill climbing over a fixed,
-ordered neighbourhood (change a dwell by one, drop a stop, move a stop to a neighbouring
-covering cell, insert a stop at one of the best cells of a node not yet fully served, swap
-two consecutive stops) and takes the best improving move of each sweep. It is limited by a
-number of evaluations, so its result does not depend on the machine. The value of a walk
-is :class:`planners.service.StepModel`'s, which is the simulator's return for a
-deterministic channel.
+last stop it stays where it is. :func:`polish_walk` climbs from a walk through a fixed,
+ordered neighbourhood (a dwell one step longer or shorter, a stop dropped, a stop moved to
+a neighbouring cell, two consecutive stops swapped, a stop inserted where it costs the
+shortest detour at the cell that serves some node fastest), taking the first improving
+move, then kicks the best walk found (two stops dropped or moved, from a seeded generator)
+and climbs again: an iterated local search. It is limited by a number of walk evaluations,
+so its result does not depend on the machine. A walk's value is
+:class:`planners.service.StepModel`'s, the simulator's return for a deterministic channel.
 """
 
 from __future__ import annotations
@@ -20,24 +21,25 @@ from planners.policies import _REVERSE
 from planners.service import StepModel
 
 
-class _Walks:
+class Walks:
     """Builds walks from stops and values them with one :class:`StepModel`."""
 
     def __init__(self, model: StepModel):
         self.model = model
         self._trees: dict[int, np.ndarray] = {}
         self._dist: dict[int, np.ndarray] = {}
-        self._pair_cell = model.cell_of_pair()
         self.evaluations = 0
 
     def distances(self, cell: int) -> np.ndarray:
+        """(n_cells,) moves between ``cell`` and every cell (-1: unreachable), cached."""
         dist = self._dist.get(cell)
         if dist is None:
             dist, tree = bfs_distances(self.model.next_cell, cell)
             self._dist[cell], self._trees[cell] = dist, tree
         return dist
 
-    def _step_toward(self, cell: int, target: int) -> int:
+    def step_toward(self, cell: int, target: int) -> int:
+        """The move from ``cell`` along a shortest path to ``target`` (they differ)."""
         self.distances(target)
         return int(_REVERSE[self._trees[target][0, cell]])
 
@@ -51,7 +53,7 @@ class _Walks:
                 continue  # unreachable: skip the stop
             moved = False
             while cell != target and len(out) < m.steps:
-                a = self._step_toward(cell, target)
+                a = self.step_toward(cell, target)
                 out.append(a)
                 cell = int(m.next_cell[cell, a])
                 moved = True
@@ -74,11 +76,7 @@ class _Walks:
         for t in range(len(a)):
             cells[t + 1] = m.next_cell[cells[t], a[t]]
         cost = float(m.step_cost[cells[:-1], a].sum())
-        counts = np.bincount(cells[1:], minlength=m.n_cells)[self._pair_cell]
-        bits = np.bincount(m.cov_node, weights=counts * m.bits, minlength=m.n_nodes)
-        joules = np.bincount(m.cov_node, weights=counts * m.joules, minlength=m.n_nodes)
-        service = m.data_weight * np.minimum(bits, m.data_bits).sum() + m.energy_weight * np.minimum(joules, m.room_j).sum()
-        return float(service) - cost
+        return m.service_value(np.bincount(cells[1:], minlength=m.n_cells)) - cost
 
 
 def stops_of(model: StepModel, actions: list[int]) -> list[tuple[int, int]]:
@@ -127,7 +125,7 @@ def polish_walk(
     stops dropped or moved, from a generator seeded with ``seed``) followed by climbing
     again, keeping the best walk: an iterated local search.
     """
-    walks = _Walks(model)
+    walks = Walks(model)
     candidates = _candidate_cells(model)
     rng = np.random.default_rng(seed)
     best = _climb(walks, stops_of(model, actions), candidates, max_evaluations)
@@ -153,7 +151,7 @@ def polish_walk(
     return list(actions)
 
 
-def _climb(walks: _Walks, stops: list[tuple[int, int]], candidates: list[int], max_evaluations: int) -> list[tuple[int, int]]:
+def _climb(walks: Walks, stops: list[tuple[int, int]], candidates: list[int], max_evaluations: int) -> list[tuple[int, int]]:
     """First-improvement hill climbing from ``stops`` until no neighbour is better."""
     current = walks.value(walks.actions(stops))
     improved = True
@@ -169,7 +167,7 @@ def _climb(walks: _Walks, stops: list[tuple[int, int]], candidates: list[int], m
     return stops
 
 
-def _neighbours(walks: _Walks, stops: list[tuple[int, int]], candidates: list[int]):  # type: ignore[no-untyped-def]
+def _neighbours(walks: Walks, stops: list[tuple[int, int]], candidates: list[int]):  # type: ignore[no-untyped-def]
     """Neighbouring stop lists, in a fixed order."""
     m = walks.model
     n = len(stops)
