@@ -27,9 +27,17 @@ The start cell counts only when a step ends there (``n_v`` counts arrivals), blo
 are never better than the cheapest stay, and every walk of the grid maps onto a walk of this
 model that earns at least as much (shorter stretches padded with hovers, which cost no more
 than moves), so with a deterministic channel and direction-independent move costs the
-model's optimum *is* the simulator's optimum. HiGHS solves it single-threaded from a
-warm start (:func:`planners.rate_greedy.rate_greedy_actions`), limited by a deterministic
-node budget; its dual bound is a proven upper bound on every policy's return.
+model's optimum *is* the simulator's optimum.
+
+**Solving.** The linear relaxation is tightened by a fixed number of rounds of
+connectivity cuts (every set of vertices holding a visited vertex but not the start is
+entered; separated by max flow), each round's value a valid bound (``lp_bound``). HiGHS then
+branches single-threaded from a warm start, the rate-greedy walk
+(:func:`planners.rate_greedy.rate_greedy_actions`) polished by a seeded local search
+(:func:`planners.walk_search.polish_walk`), within a node budget; its dual bound is a proven
+upper bound on every policy's return. Every limit is deterministic (:class:`MilpBudget`), so
+the same scenario and budget give the same numbers on any machine; the wall-clock limit is
+a safety net whose hitting the status reports.
 
 **Stochastic channel.** The per-step amounts are the expectations of the capped per-step
 transfer over the fading and link failures (the *expected-rate relaxation*), and the plan
@@ -236,8 +244,8 @@ class _ReducedGraph:
     exact: bool
     """Whether each arc's fewest moves and least penalty come from one path and stays are
     never dearer than moves (no current): the model is then exact."""
-    _paths: Any = None
-    """How to rebuild an arc's cells: predecessor rows per tail vertex."""
+    predecessors: Any = None
+    """(V, n_cells) shortest-path predecessors from each vertex: how to rebuild an arc's cells."""
 
     @property
     def n_arcs(self) -> int:
@@ -299,12 +307,12 @@ class _ReducedGraph:
             pair_moves=s_vv,
             pair_cost=e_vv,
             exact=exact,
-            _paths=pred,
+            predecessors=pred,
         )
 
     def arc_cells(self, a: int) -> list[int]:
         """The cells an arc passes through after its tail, ending at its head."""
-        pred = self._paths[self.tail[a]]
+        pred = self.predecessors[self.tail[a]]
         target = int(self.vertices[self.head[a]])
         source = int(self.vertices[self.tail[a]])
         cells = [target]
@@ -514,8 +522,8 @@ def _highs(program: _Program, budget: MilpBudget, *, relax: bool, time_limit_s: 
     """A HiGHS instance holding the program, quiet, single-threaded, with the budget."""
     import highspy
 
-    # the raw binding: highspy.Highs's constructor logs a banner before options can be set
-    h = highspy._Highs()
+    # the plain binding: highspy.Highs's constructor logs a banner before options can be set
+    h = getattr(highspy, "_Highs", highspy.Highs)()
     for name, value in (
         ("output_flag", False),
         ("threads", 1),
@@ -633,8 +641,11 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
     else:
         state = "feasible"
         message = f"best walk with a gap of {100 * gap:.3g} % to the bound"
-        if not exact:
-            message += " (" + ("expected-rate relaxation" if not model.exact else "current: relaxed arcs") + ")"
+        relaxed = [reason for reason, applies in (
+            ("expected-rate relaxation", not model.exact), ("current: relaxed arcs", not graph.exact)
+        ) if applies]
+        if relaxed:
+            message += f" ({'; '.join(relaxed)})"
     if time_hit:
         message += f"; the safety time limit ({budget.time_limit_s:g} s) was hit, so this result depends on the machine's speed"
     return OptimumResult(state, message, objective, bound, lp_bound, lp_time, actions, exact, nodes, time_hit, wall, details)
