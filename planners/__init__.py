@@ -11,15 +11,20 @@ Everything a user needs is importable from here::
   :func:`optimise_dwell_and_split` (convex program, cvxpy);
 - bounds: :func:`upper_bound`, :func:`exact_optimum` (dynamic programming on tiny scenarios);
 - planners that run in the environment: :class:`KMeansTspPlanner`,
-  :class:`LawnmowerPlanner`, :class:`GreedyPlanner`.
+  :class:`LawnmowerPlanner`, :class:`GreedyPlanner`, :class:`RateGreedyPlanner`,
+  :class:`RewardKMeansTspPlanner` (k-means + TSP with its choices scored by the reward);
+- the optimum as the reference: :func:`solve_optimum` (the episode as a mixed-integer
+  program, HiGHS: best walk, proven bound, gap) and its policy :class:`MilpPlanner`; the
+  per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`.
 
-The solvers (ortools, ompl, cvxpy, scikit-learn) load inside the functions that use them,
+The solvers (ortools, ompl, cvxpy, highspy, scikit-learn, scipy) load inside the functions that use them,
 so ``import planners`` stays light; a test checks that it imports none of them.
 """
 
 from planners.bounds import ExactOptimum, UpperBound, exact_optimum, upper_bound
 from planners.clustering import HoverPoints, kmeans_hover_points
 from planners.grid import bfs_distances, distance_matrix, path_actions
+from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, solve_optimum
 from planners.paths3d import PathResult, available_planners, path_energy_j, plan_path_3d
 from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner, Plan, Stop
 from planners.power_split import (
@@ -28,18 +33,29 @@ from planners.power_split import (
     optimal_split_ratio,
     optimise_dwell_and_split,
 )
+from planners.rate_greedy import RateGreedyPlanner, rate_greedy_actions
+from planners.reward_tour import RewardKMeansTspPlanner
+from planners.service import StepModel, step_model
 from planners.tsp import TspResult, held_karp, solve_tsp, tour_length
+from planners.walk_search import polish_walk
 
 __all__ = [
+    "BUDGETS",
     "DwellSplitProblem",
     "ExactOptimum",
     "GreedyPlanner",
     "HoverPoints",
     "KMeansTspPlanner",
     "LawnmowerPlanner",
+    "MilpBudget",
+    "MilpPlanner",
+    "OptimumResult",
     "PathResult",
     "Plan",
     "PowerSplitResult",
+    "RateGreedyPlanner",
+    "RewardKMeansTspPlanner",
+    "StepModel",
     "Stop",
     "TspResult",
     "UpperBound",
@@ -54,7 +70,11 @@ __all__ = [
     "path_actions",
     "path_energy_j",
     "plan_path_3d",
+    "polish_walk",
+    "rate_greedy_actions",
+    "solve_optimum",
     "solve_tsp",
+    "step_model",
     "tour_length",
     "upper_bound",
 ]
