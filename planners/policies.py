@@ -133,6 +133,9 @@ class KMeansTspPlanner(_Executor):
     stop comes from :func:`planners.power_split.optimise_dwell_and_split` under the time
     left after travel; the environment applies the scenario's own split ratio, so the
     program's per-node split ratios are advice the simulator does not take.
+    ``tsp_time_limit_s`` is the TSP's wall-clock safety net (the search itself stops on a
+    deterministic budget, :func:`planners.tsp.solve_tsp`); when it hits, the plan's status
+    says ``tsp time_limit``.
     """
 
     def __init__(
@@ -140,7 +143,7 @@ class KMeansTspPlanner(_Executor):
         *,
         k: int | None = None,
         tsp_method: str = "auto",
-        tsp_time_limit_s: float = 1.0,
+        tsp_time_limit_s: float = 60.0,
         tour_costs: str = "auto",
         ompl_time_limit_s: float = 0.2,
         seed: int = 0,

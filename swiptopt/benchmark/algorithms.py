@@ -66,7 +66,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             "kmeans_tsp",
             "k-means + TSP",
             "planner",
-            {"k": None, "tsp_method": "auto", "tsp_time_limit_s": 1.0, "tour_costs": "auto", "ompl_time_limit_s": 0.2, "linger_steps": 2},
+            {"k": None, "tsp_method": "auto", "tsp_time_limit_s": 60.0, "tour_costs": "auto", "ompl_time_limit_s": 0.2, "linger_steps": 2},
             _planner("KMeansTspPlanner"),
         ),
         Algorithm("lawnmower", "lawnmower", "planner", {"depth_cell": 0, "lane_spacing_cells": None, "linger_steps": 2}, _planner("LawnmowerPlanner")),
