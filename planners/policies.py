@@ -131,8 +131,8 @@ class KMeansTspPlanner(_Executor):
     (see :mod:`planners.paths3d`), so ``"ompl"`` costs are reproducible only in a fresh
     process; the benchmark keeps the deterministic default. The dwell time at each
     stop comes from :func:`planners.power_split.optimise_dwell_and_split` under the time
-    left after travel; the environment applies the scenario's own split ratio, so the
-    program's per-node split ratios are advice the simulator does not take.
+    left after travel, with the split ratio fixed at the scenario's (the one the simulator
+    applies): a linear program, solved at any number of nodes.
     ``tsp_time_limit_s`` is the TSP's wall-clock safety net (the search itself stops on a
     deterministic budget, :func:`planners.tsp.solve_tsp`); when it hits, the plan's status
     says ``tsp time_limit``.
@@ -217,6 +217,7 @@ class KMeansTspPlanner(_Executor):
             efficiency=scenario.harvest_efficiency,
             data_ref_bits=refs.data_ref_bits,
             energy_ref_j=refs.energy_ref_j,
+            split_ratio=scenario.split_ratio,
         )
         if result.dwell_s is not None:
             wanted = np.asarray(result.dwell_s) / scenario.step_duration_s
