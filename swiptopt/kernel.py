@@ -357,8 +357,8 @@ def vector_observation(  # type: ignore[no-untyped-def]
     The AUV's cell centre over the volume's extent (``cells_norm`` (n_cells, 3)), the
     fraction of the episode left, then per node: its position minus the AUV's over the
     extent (``nodes_norm`` (n_nodes, 3)), the fraction of its data left, its state of charge
-    and 1.0 if covered from ``cell``. Array slices only, so that numpy runs it in Python and
-    numba compiles it unchanged.
+    and 1.0 if covered from ``cell``. Whole-array ufuncs writing straight into ``out`` (no
+    temporaries), so that numpy runs it fast in Python and numba compiles it unchanged.
     """
     n = data_left.shape[0]
     for axis in range(3):
@@ -366,9 +366,9 @@ def vector_observation(  # type: ignore[no-untyped-def]
     out[3] = 1.0 - t / params[P_STEPS]
     per_node = out[4:].reshape((n, VECTOR_NODE_FEATURES))
     for axis in range(3):
-        per_node[:, axis] = nodes_norm[:, axis] - cells_norm[cell, axis]
-    per_node[:, 3] = data_left / data0
-    per_node[:, 4] = energy / capacity
+        np.subtract(nodes_norm[:, axis], cells_norm[cell, axis], per_node[:, axis])
+    np.divide(data_left, data0, per_node[:, 3])
+    np.divide(energy, capacity, per_node[:, 4])
     per_node[:, 5] = 0.0
     for p in range(cov_ptr[cell], cov_ptr[cell + 1]):
         per_node[cov_node[p], 5] = 1.0
