@@ -9,7 +9,7 @@ the two-segment path over the pier's far vertical edge (x = 60, y = 90) at const
 OMPL's seed is process-wide and set once (``--seed``), so the runs are successive draws of
 one seeded stream. Usage:
 
-    python benchmarks/bench_paths3d.py [--limits 0.1 0.5 1.0] [--runs 3] [--planners AORRTC RRTstar ...]
+    python benchmarks/bench_paths3d.py [--limits 0.1 0.5 1.0] [--runs 3] [--planners InformedRRTstar RRTstar ...]
 """
 
 from __future__ import annotations

@@ -1,12 +1,16 @@
-"""Time of the power-split planners: the closed form, a cvxpy build + solve, a DPP re-solve.
+"""Time of the power-split planners: the closed form, a cvxpy build + solve, a DPP re-solve,
+and the linear program with the split fixed (on the same instance and on a large one).
 
-All three run in this one process, interleaved over the repeats so they see the same
-machine load; the median of each is reported, with the ratios. The program's instance is
-the ``paper`` scenario with one hover cell a level above each of the first ``--hover``
-nodes; each re-solve draws new values for the same coverage pattern (3 dB log-normal
-shadowing on SNR and power, a random share of the data already collected). Usage:
+All run in this one process, interleaved over the repeats so they see the same machine
+load; the median of each is reported, with the ratios, after the machine. The program's
+instance is the ``paper`` scenario with one hover cell a level above each of the first
+``--hover`` nodes; each re-solve draws new values for the same coverage pattern (3 dB
+log-normal shadowing on SNR and power, a random share of the data already collected). The
+large instance: ``--large-nodes`` nodes and a hover cell above each of the first
+``--large-hover``. Usage:
 
     python benchmarks/bench_power_split.py [--closed-form-nodes 100000] [--nodes 50] [--hover 10] [--repeats 7]
+        [--large-nodes 1000] [--large-hover 300]
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from pathlib import Path
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import argparse
+import importlib.util
 import statistics
 import time
 from typing import Any
@@ -67,6 +72,8 @@ def main() -> None:
     parser.add_argument("--hover", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--large-nodes", type=int, default=1000)
+    parser.add_argument("--large-hover", type=int, default=300)
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
 
@@ -82,10 +89,15 @@ def main() -> None:
     snr_many = inputs.snr_linear[covered][pick] * shadow
     p_many = inputs.available_power_w[covered][pick] * shadow
 
+    large_scenario = Scenario.preset("paper", n_nodes=args.large_nodes)
+    large = ps.from_scenario(large_scenario, hover_cells_above_nodes(large_scenario, args.large_hover)).as_kwargs()
+    large_pairs = int((large["available_power_w"] > 0).sum())
+    alpha = scenario.split_ratio
+
     built = ps.DwellSplitProblem(covered)
     built.solve(**base)  # the first solve canonicalises; re-solves below reuse it
     ps.optimal_split_ratio(snr_many, p_many, **model)  # warm up
-    times: dict[str, list[float]] = {"closed": [], "build": [], "resolve": []}
+    times: dict[str, list[float]] = {"closed": [], "build": [], "resolve": [], "lp": [], "lp_large": []}
     statuses: list[str] = []
     for _ in range(args.repeats):
         values = perturbed(base, rng)
@@ -95,15 +107,26 @@ def main() -> None:
         times["build"].append(t)
         t, again = timed(lambda: built.solve(**values))
         times["resolve"].append(t)
-        statuses += [fresh.status, again.status]
+        t, fixed = timed(lambda: ps.optimise_dwell_and_split(**values, split_ratio=alpha))
+        times["lp"].append(t)
+        t, fixed_large = timed(lambda: ps.optimise_dwell_and_split(**large, split_ratio=alpha))
+        times["lp_large"].append(t)
+        statuses += [fresh.status, again.status, fixed.status, fixed_large.status]
     med = {k: statistics.median(v) for k, v in times.items()}
     k, pairs = covered.shape[0], int(covered.sum())
     solver = fresh.solver
+    spec = importlib.util.spec_from_file_location("machine", Path(__file__).resolve().parent / "machine.py")
+    machine = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(machine)
+    print(machine.describe())
     print(f"power split timings, median of {args.repeats} (statuses: {sorted(set(statuses))}, solver {solver})")
     rows = [
         (f"closed form, {n:,} nodes", med["closed"]),
         (f"cvxpy build + solve, {k} hover x {args.nodes} nodes ({pairs} covered pairs)", med["build"]),
         ("cvxpy re-solve of the built problem (DPP)", med["resolve"]),
+        (f"split fixed at {alpha:g}: linear program (HiGHS), same instance", med["lp"]),
+        (f"split fixed: linear program, {args.large_hover} hover x {args.large_nodes} nodes ({large_pairs} pairs)",
+         med["lp_large"]),
     ]
     width = max(len(label) for label, _ in rows)
     for label, seconds in rows:
@@ -111,6 +134,7 @@ def main() -> None:
     print(f"  ratio build+solve / re-solve:    {med['build'] / med['resolve']:8.2f}")
     print(f"  ratio build+solve / closed form: {med['build'] / med['closed']:8.1f}")
     print(f"  ratio re-solve / closed form:    {med['resolve'] / med['closed']:8.1f}")
+    print(f"  ratio build+solve / fixed-split LP: {med['build'] / med['lp']:5.1f}")
 
 
 if __name__ == "__main__":

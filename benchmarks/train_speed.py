@@ -9,6 +9,9 @@ median over repeats, compilation done before timing:
 - ``python, python kernel``: the same loop with the environment's pure-Python kernel
   (``AuvSwiptEnv(backend="python")``), i.e. no compiled code at all.
 
+The ratios are measured side by side in this one run and the machine is printed with them:
+absolute rates vary several-fold between machines and with their load, the ratios much less.
+
     python benchmarks/train_speed.py [--nodes 25] [--repeats 5]
 """
 
@@ -19,6 +22,7 @@ import statistics
 import time
 
 import gymnasium as gym
+from machine import describe
 
 import swiptopt
 from rl import QLearningAgent, train
@@ -47,6 +51,7 @@ def main() -> None:
         runs["python"].append(rate("python", args.python_episodes, args.nodes, r))
         runs["python, python kernel"].append(rate("python", args.python_episodes // 3, args.nodes, r, kernel="python"))
     med = {k: statistics.median(v) for k, v in runs.items()}
+    print(describe())
     print(f"Q-learning training, paper preset, {args.nodes} nodes, median of {args.repeats} runs, one core")
     for name, value in med.items():
         print(f"  {name + ' backend:':<32}{value:>14,.0f} agent-environment steps/s")

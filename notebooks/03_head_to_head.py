@@ -40,7 +40,6 @@ NODE_COUNTS = [10, 20] if QUICK else [10, 20, 30, 40, 50]
 LAYOUTS = 2 if QUICK else 6  # node layouts per sweep point (the error bars)
 EPISODES = 2 if QUICK else 10  # greedy evaluation episodes per task
 TRAIN_EPISODES = 1_000 if QUICK else 20_000  # per RL task
-TSP_TIME_LIMIT_S = 0.2 if QUICK else 1.0
 WORKERS = 1 if QUICK else None  # local processes; None: every core
 TINY_EPISODES = 3 if QUICK else 10  # evaluation episodes on the tiny preset
 
@@ -87,7 +86,7 @@ experiment = Experiment.from_dict({
         "q_learning": {"train_episodes": TRAIN_EPISODES},
         "sarsa": {"train_episodes": TRAIN_EPISODES},
         "random": {},
-        "kmeans_tsp": {"tsp_time_limit_s": TSP_TIME_LIMIT_S},
+        "kmeans_tsp": {},
         "lawnmower": {},
         "greedy": {},
     },

@@ -37,7 +37,6 @@ QUICK = os.environ.get("SWIPTOPT_NOTEBOOK_QUICK", "0") == "1"
 SEED = 0
 OMPL_SEED = SEED + 1  # OMPL's seed is process-wide, set once, and must be >= 1
 N_NODES = 30
-TSP_TIME_LIMIT_S = 0.5 if QUICK else 2.0
 OMPL_TIME_LIMIT_S = 0.3 if QUICK else 2.0
 GRID_POINTS = 40 if QUICK else 200  # points per axis of the split-ratio map
 BUDGET_POINTS = 5 if QUICK else 20  # mission-time budgets of the dwell sweep
@@ -104,16 +103,17 @@ fig.tight_layout()
 #
 # Distances between the start cell and the hover cells in 3D. `solve_tsp` uses CP-SAT
 # (a proof of optimality) on small instances and OR-Tools routing with guided local
-# search on large ones, always under a time limit; the result reports whether the
-# order is proven optimal. A closed tour returns to the start; an open path ends at
-# the last hover point.
+# search on large ones. Each search stops on a budget of work (CP-SAT's deterministic
+# time, a number of routing solutions), not of seconds, so the order is the same on any
+# machine; the result reports whether it is proven optimal. A closed tour returns to the
+# start; an open path ends at the last hover point.
 
 # %%
 start_m = scenario.cell_centers_m[scenario.start_cell_index]
 stops_m = np.vstack([start_m, hover_m])
 distance_m = np.linalg.norm(stops_m[:, None, :] - stops_m[None, :, :], axis=-1)
-tour = solve_tsp(distance_m, start=0, closed=True, time_limit_s=TSP_TIME_LIMIT_S)
-path = solve_tsp(distance_m, start=0, closed=False, time_limit_s=TSP_TIME_LIMIT_S)
+tour = solve_tsp(distance_m, start=0, closed=True)
+path = solve_tsp(distance_m, start=0, closed=False)
 for name, result in (("closed tour", tour), ("open path", path)):
     if not result.order:
         raise RuntimeError(f"{name}: no solution ({result.status})")
@@ -162,11 +162,11 @@ fig.tight_layout()
 # `plan_path_3d` runs OMPL in a 3D real-vector space over the scenario's volume with a
 # validity checker for its boxes, spheres and seabed, always under a time limit, and
 # reports whether the path is exact. The seed is OMPL's process-wide seed: set once, on
-# the first call, and the same on every later call. The default planner (AORRTC) is
-# anytime and stops at the wall-clock limit, so path lengths can differ slightly from
+# the first call, and the same on every later call. The default planner (Informed RRT*)
+# is anytime and stops at the wall-clock limit, so path lengths can differ slightly from
 # run to run even with a seed.
 #
-# In the harbour each trip is planned twice: for the shortest path (AORRTC) and for the
+# In the harbour each trip is planned twice: for the shortest path and for the
 # least AUV energy (`objective="energy"`, Informed RRT*), which accounts for the tidal
 # current that weakens with depth. Both are anytime planners cut off at the time limit;
 # with the short limits of the quick settings the energy planner may not yet beat the

@@ -9,7 +9,8 @@ Everything a user needs is importable from here::
 - 3D paths: :func:`plan_path_3d` (OMPL around obstacles, length or AUV energy);
 - power split and dwell: :func:`optimal_split_ratio` (closed form),
   :func:`optimise_dwell_and_split` (convex program, cvxpy);
-- bounds: :func:`upper_bound`, :func:`exact_optimum` (dynamic programming on tiny scenarios);
+- bounds: :func:`upper_bound`, :func:`exact_optimum` (dynamic programming on tiny scenarios)
+  and :func:`exact_state_bound` (its size, known before running it);
 - planners that run in the environment: :class:`KMeansTspPlanner`,
   :class:`LawnmowerPlanner`, :class:`GreedyPlanner`, :class:`RateGreedyPlanner`,
   :class:`RewardKMeansTspPlanner` (k-means + TSP with its choices scored by the reward);
@@ -21,7 +22,7 @@ The solvers (ortools, ompl, cvxpy, highspy, scikit-learn, scipy) load inside the
 so ``import planners`` stays light; a test checks that it imports none of them.
 """
 
-from planners.bounds import ExactOptimum, UpperBound, exact_optimum, upper_bound
+from planners.bounds import ExactOptimum, UpperBound, exact_optimum, exact_state_bound, upper_bound
 from planners.clustering import HoverPoints, kmeans_hover_points
 from planners.grid import bfs_distances, distance_matrix, path_actions
 from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, solve_optimum
@@ -63,6 +64,7 @@ __all__ = [
     "bfs_distances",
     "distance_matrix",
     "exact_optimum",
+    "exact_state_bound",
     "held_karp",
     "kmeans_hover_points",
     "optimal_split_ratio",

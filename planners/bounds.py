@@ -11,13 +11,14 @@ itself, so results can report optimality gaps.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
-from swiptopt.harvesting import harvest_from_input_w
+from swiptopt.harvesting import harvest_from_input_array_w
 from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.scenario import Scenario
 
@@ -31,10 +32,14 @@ class UpperBound:
     energy_delivered_j: float
 
 
-def upper_bound(scenario: Scenario) -> UpperBound:
+def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBound:
     """Bounds no policy can beat (SPEC 6): node caps, and per-step service for a
-    deterministic channel."""
-    t = K.build_tables(scenario)
+    deterministic channel.
+
+    ``tables``: the scenario's kernel tables when the caller has them (an environment's
+    ``env.tables``), else built here.
+    """
+    t = K.build_tables(scenario) if tables is None else tables
     p = t.params
     gamma = p[K.P_GAMMA]
     coverable = np.zeros(t.n_nodes, dtype=bool)
@@ -49,10 +54,9 @@ def upper_bound(scenario: Scenario) -> UpperBound:
         # the most any one step can deliver, from the best cell, ignoring every cap
         dt = p[K.P_DT]
         bits = dt * shannon_rate_bps(p[K.P_BW], p[K.P_ALPHA] * t.cov_snr)
-        joules = np.array([
-            dt * harvest_from_input_w((1 - p[K.P_ALPHA]) * pav, p[K.P_LOGISTIC] == 1.0, p[K.P_ETA], p[K.P_LMAX], p[K.P_LA], p[K.P_LB])
-            for pav in t.cov_pav
-        ])
+        joules = dt * harvest_from_input_array_w(
+            (1 - p[K.P_ALPHA]) * t.cov_pav, p[K.P_LOGISTIC] == 1.0, p[K.P_ETA], p[K.P_LMAX], p[K.P_LA], p[K.P_LB]
+        )
         cell_of_pair = np.repeat(np.arange(t.n_cells), np.diff(t.cov_ptr))
         per_cell_bits = np.bincount(cell_of_pair, weights=bits, minlength=t.n_cells)
         per_cell_joules = np.bincount(cell_of_pair, weights=joules, minlength=t.n_cells)
@@ -67,6 +71,37 @@ def upper_bound(scenario: Scenario) -> UpperBound:
     return UpperBound(float(reward_cap), data_bound, energy_bound)
 
 
+#: Default ``max_states`` of :func:`exact_optimum`, and the most states the benchmark lets
+#: it explore (by :func:`exact_state_bound`, decided before it runs): about 20 us a state on
+#: the 2-core development machine, so at most about 40 s.
+EXACT_STATE_LIMIT = 2_000_000
+
+
+def exact_state_bound(scenario: Scenario, tables: K.Tables | None = None) -> int:
+    """An upper bound on the states :func:`exact_optimum` explores, computed before running it.
+
+    The search expands every state of layer t (t = 0 .. T-1) by the 7 actions, so it
+    explores 7 times the sum of the layer sizes. A layer holds at most 7^t states (one per
+    action sequence). Without idle drain and energy gate, a node's data and energy depend
+    only on how often the AUV served it from each cell (sums of fixed per-cell increments,
+    capped), so a state is fixed by the AUV's cell and the counts of visits to the m cells
+    that cover any node: at most n_cells * C(t + m, m) states in layer t. With a drain or a
+    gate the order of the visits matters, and only 7^t holds. Float sums in another order
+    can differ in the last bits; the search merges states at 1 mbit and 1 nJ, so the bound
+    holds in practice, and ``max_states`` still guards the search.
+    """
+    t = K.build_tables(scenario) if tables is None else tables
+    covering = int(np.count_nonzero(np.diff(t.cov_ptr)))
+    order_free = scenario.idle_drain_w == 0 and scenario.energy_gate_j == 0
+    total = 0
+    for step in range(scenario.episode_steps):
+        layer = K.N_ACTIONS**step
+        if order_free:
+            layer = min(layer, t.n_cells * math.comb(step + covering, covering))
+        total += K.N_ACTIONS * layer
+    return total
+
+
 @dataclass(frozen=True, eq=False)
 class ExactOptimum:
     """The best return of a deterministic scenario and one action sequence that earns it."""
@@ -76,20 +111,24 @@ class ExactOptimum:
     states_explored: int
 
 
-def exact_optimum(scenario: Scenario, *, max_states: int = 3_000_000) -> ExactOptimum:
+def exact_optimum(
+    scenario: Scenario, *, max_states: int = EXACT_STATE_LIMIT, tables: K.Tables | None = None
+) -> ExactOptimum:
     """Exact optimum by forward dynamic programming over the deterministic MDP.
 
     States are (cell, node data left, node energy), merged when equal to 1 mbit and 1 nJ;
     each layer t keeps the best return reaching every state. The returned actions, replayed
     in the environment, earn the returned value (the tests check this). Needs ``channel="none"`` and no link failures;
-    ``max_states`` bounds the work (an error names it when exceeded).
+    ``max_states`` bounds the work (an error names it when exceeded; :func:`exact_state_bound`
+    tells beforehand whether it can be). ``tables``: the scenario's kernel tables when the
+    caller has them.
     """
     if scenario.channel != "none" or scenario.failure_prob_max > 0:
         raise ConfigError(
             "exact_optimum needs a deterministic scenario: channel = 'none' and failure_prob_max = 0",
             "channel",
         )
-    t = K.build_tables(scenario)
+    t = K.build_tables(scenario) if tables is None else tables
     step = K.compiled("step") if K.numba_available() else K.step
     uniforms, normals = K.noise_buffers(t)
     start = K.new_state(t)

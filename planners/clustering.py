@@ -1,8 +1,17 @@
-"""Hover points by k-means of the node positions (SPEC 6, ``clustering``)."""
+"""Hover points by k-means of the node positions (SPEC 6, ``clustering``).
+
+Coverage comes from the simulator kernel's own tables (:func:`swiptopt.kernel.build_tables`),
+which already hold it as a compressed sparse row structure (``cov_ptr``, ``cov_node``,
+``cov_pav``): :func:`coverage_matrices` wraps those arrays as scipy sparse matrices without
+copying them, so a planner works in memory proportional to the covered pairs, not to cells
+x nodes. scikit-learn and scipy are imported inside the functions.
+"""
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -26,25 +35,38 @@ class HoverPoints:
     k: int
 
 
-def coverage_tables(scenario: Scenario, tables: K.Tables | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(n_cells, N) coverage from every free cell and the mean available power there, W.
+def coverage_matrices(tables: K.Tables) -> tuple[Any, Any]:
+    """The kernel's coverage as two (n_cells, N) ``scipy.sparse.csr_array``: which pairs are
+    covered (bool) and their mean available power (W), sharing the tables' arrays."""
+    from scipy import sparse
 
-    ``tables``: the scenario's kernel tables when the caller has them (else built here).
-    """
-    tables = K.build_tables(scenario) if tables is None else tables
-    covered = np.zeros((scenario.n_cells, scenario.n_nodes), dtype=bool)
-    power = np.zeros((scenario.n_cells, scenario.n_nodes))
-    for c in range(scenario.n_cells):
-        nodes = tables.covered(c)
-        covered[c, nodes] = True
-        power[c, nodes] = tables.cov_pav[tables.cov_ptr[c] : tables.cov_ptr[c + 1]]
+    shape = (tables.n_cells, tables.n_nodes)
+    structure = (tables.cov_node, tables.cov_ptr)
+    covered = sparse.csr_array((np.ones(tables.cov_node.size, dtype=bool), *structure), shape=shape)
+    power = sparse.csr_array((tables.cov_pav, *structure), shape=shape)
     return covered, power
 
 
-def best_hover_cell(covered: np.ndarray, power: np.ndarray, group: np.ndarray) -> int:
-    """The cell covering most nodes of ``group``, ties broken by their total received power."""
-    count = covered[:, group].sum(axis=1)
-    total = (power[:, group] * covered[:, group]).sum(axis=1)
+def coverage_tables(scenario: Scenario, tables: K.Tables | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(n_cells, N) coverage from every free cell and the mean available power there, W,
+    as dense arrays (cells x nodes in memory: :func:`coverage_matrices` is the sparse form).
+
+    ``tables``: the scenario's kernel tables when the caller has them (else built here).
+    """
+    covered, power = coverage_matrices(K.build_tables(scenario) if tables is None else tables)
+    return covered.toarray(), power.toarray()
+
+
+def best_hover_cell(covered: Any, power: Any, group: np.ndarray) -> int:
+    """The cell covering most nodes of ``group``, ties broken by their total received power.
+
+    ``covered`` and ``power``: (n_cells, N), dense arrays or sparse matrices, power zero
+    where not covered.
+    """
+    member = np.zeros(covered.shape[1])
+    member[np.asarray(group, dtype=np.int64)] = 1.0
+    count = np.asarray(covered @ member, dtype=float)
+    total = np.asarray(power @ member, dtype=float)
     score = count * (1.0 + total.max() + 1.0) + total  # lexicographic: count first
     return int(np.argmax(score))
 
@@ -60,23 +82,31 @@ def kmeans_hover_points(
     """Group the coverable nodes with k-means (scikit-learn, seeded) and pick a hover cell each.
 
     ``k`` given: that many groups. ``k=None``: the smallest K for which every group fits one
-    coverage footprint (its hover cell covers all of its nodes). Nodes that no cell can
-    cover are left out (label -1).
+    coverage footprint (its hover cell covers all of its nodes), trying at most ``max_k``
+    groups (default: one per coverable node). Nodes that no cell can cover are left out
+    (label -1); with none coverable the result has K = 0. Bad ``k`` or ``max_k`` raise
+    :class:`~swiptopt.errors.ConfigError` naming it.
     """
-    from sklearn.cluster import KMeans
-
-    covered, power = coverage_tables(scenario, tables)
-    coverable = np.flatnonzero(covered.any(axis=0))
+    if max_k is not None and (isinstance(max_k, bool) or not isinstance(max_k, numbers.Integral) or max_k < 1):
+        raise ConfigError(f"max_k = {max_k!r} must be a positive integer (or None for no limit)", "max_k")
+    if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 1):
+        raise ConfigError(f"k = {k!r} must be a positive integer (or None to choose it)", "k")
+    tables = K.build_tables(scenario) if tables is None else tables
+    coverable = np.unique(tables.cov_node)
     labels = np.full(scenario.n_nodes, -1, dtype=np.int64)
     if coverable.size == 0:
         return HoverPoints(np.zeros(0, dtype=np.int64), labels, np.zeros((0, scenario.n_nodes), bool), 0)
+    if k is not None and k > coverable.size:
+        raise ConfigError(f"k = {k!r} must be an integer in [1, {coverable.size}] (the coverable nodes)", "k")
+
+    from sklearn.cluster import KMeans
+
+    covered, power = coverage_matrices(tables)
     positions = scenario.layout.positions_m[coverable]
     seed = int(np.random.default_rng(rng).integers(2**31 - 1))
-    limit = coverable.size if max_k is None else min(max_k, coverable.size)
-    if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= coverable.size):
-        raise ConfigError(f"k = {k!r} must be an integer in [1, {coverable.size}] (the coverable nodes)", "k")
+    limit = coverable.size if max_k is None else min(int(max_k), coverable.size)
     # no K below this can fit: every group needs one footprint covering all of it
-    widest = int(covered[:, coverable].sum(axis=1).max())
+    widest = int(np.diff(tables.cov_ptr).max())
     lowest = min(limit, -(-coverable.size // widest))
     candidates = [int(k)] if k is not None else range(lowest, limit + 1)
     for kk in candidates:
@@ -87,11 +117,11 @@ def kmeans_hover_points(
             group = coverable[model.labels_ == g]
             cell = best_hover_cell(covered, power, group)
             cells.append(cell)
-            fits &= bool(covered[cell, group].all())
+            fits &= bool(np.isin(group, tables.covered(cell)).all())
         if fits or k is not None or kk == limit:
             labels[coverable] = model.labels_
             cells_arr = np.asarray(cells, dtype=np.int64)
-            return HoverPoints(cells_arr, labels, covered[cells_arr], kk)
+            return HoverPoints(cells_arr, labels, covered[cells_arr].toarray(), kk)
     raise AssertionError("unreachable")  # the loop returns at kk == limit
 
 
@@ -102,8 +132,9 @@ def hover_link(
 
     Zero where the node is not covered from that cell.
     """
-    covered, _ = coverage_tables(scenario, tables)
+    covered, _ = coverage_matrices(K.build_tables(scenario) if tables is None else tables)
+    cells = np.asarray(cells, dtype=np.int64)
     d = slant_distances_m(scenario.cell_centers_m[cells], scenario.layout.positions_m)
     budget = link_budget(scenario, d)
-    mask = covered[cells]
+    mask = covered[cells].toarray()
     return np.where(mask, 10.0 ** (budget.snr_db / 10.0), 0.0), np.where(mask, budget.available_power_w, 0.0)

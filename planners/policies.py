@@ -186,8 +186,11 @@ class KMeansTspPlanner(_Executor):
     (see :mod:`planners.paths3d`), so ``"ompl"`` costs are reproducible only in a fresh
     process; the benchmark keeps the deterministic default. The dwell time at each
     stop comes from :func:`planners.power_split.optimise_dwell_and_split` under the time
-    left after travel; the environment applies the scenario's own split ratio, so the
-    program's per-node split ratios are advice the simulator does not take.
+    left after travel, with the split ratio fixed at the scenario's (the one the simulator
+    applies): a linear program, solved at any number of nodes.
+    ``tsp_time_limit_s`` is the TSP's wall-clock safety net (the search itself stops on a
+    deterministic budget, :func:`planners.tsp.solve_tsp`); when it hits, the plan's status
+    says ``tsp time_limit``.
     """
 
     def __init__(
@@ -195,7 +198,7 @@ class KMeansTspPlanner(_Executor):
         *,
         k: int | None = None,
         tsp_method: str = "auto",
-        tsp_time_limit_s: float = 1.0,
+        tsp_time_limit_s: float = 60.0,
         tour_costs: str = "auto",
         ompl_time_limit_s: float = 0.2,
         seed: int = 0,
@@ -273,6 +276,7 @@ class KMeansTspPlanner(_Executor):
             efficiency=scenario.harvest_efficiency,
             data_ref_bits=refs.data_ref_bits,
             energy_ref_j=refs.energy_ref_j,
+            split_ratio=scenario.split_ratio,
         )
         if result.dwell_s is not None:
             wanted = np.asarray(result.dwell_s) / scenario.step_duration_s

@@ -45,7 +45,18 @@ exist) and which budgets are present.
 Once every cap binds, more dwell adds nothing, so the optimal dwell is not unique; a cost of
 :data:`DWELL_TIE_BREAK` times the best pair's value rate per second of dwell selects the
 shortest optimal dwell (the reported objective leaves it out). The solver is Clarabel
-(interior point, exponential cone) when installed, else SCS.
+(interior point, exponential cone) when installed, else SCS; on a numerical failure the
+default retries Clarabel at looser tolerances, then SCS, and says so (status
+``optimal_inaccurate`` and a message). Conditioning: the program runs in units of the time
+budget, caps above what the whole budget could deliver are clipped to it (they cannot bind),
+and the minimum-energy rows exist only when a minimum is asked for.
+
+**The split fixed** (``split_ratio=alpha``, as the simulator does with the scenario's split):
+each pair's rates per second are then constants, and what remains is a linear program over
+the dwells and each node's counted amounts, solved by HiGHS (scipy) in well under a second at
+1000 nodes and thousands of covered pairs. The conic program with every split free does not
+scale as well: it solves hundreds of pairs in a second or two, but thousands take minutes or
+fail numerically (then the status says so).
 
 cvxpy (and scipy) are imported inside the functions that use them, so ``import planners``
 stays light.
@@ -87,7 +98,25 @@ ZERO_DWELL_FRACTION = 1e-9
 #: worth of the best pair; the reported objective is the value without it.
 DWELL_TIE_BREAK = 1e-6
 
-STATUSES = ("optimal", "optimal_inaccurate", "infeasible", "unbounded", "solver_error")
+STATUSES = ("optimal", "optimal_inaccurate", "no_coverage", "infeasible", "unbounded", "solver_error")
+
+#: Solvers cvxpy offers for the exponential cone (the bits' perspective form). A ``solver``
+#: outside this list, or not installed, is refused with a ConfigError naming it.
+EXP_CONE_SOLVERS = ("CLARABEL", "SCS", "ECOS", "MOSEK")
+
+#: Clarabel settings tried in turn when the first attempt (cvxpy's defaults, tolerances 1e-8)
+#: fails with numerical trouble ("InsufficientProgress" from about a thousand covered pairs):
+#: looser tolerances, then shorter steps. A solution found this way is reported
+#: ``optimal_inaccurate``.
+CLARABEL_RETRIES = (
+    {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-6, "tol_ktratio": 1e-4},
+    {"max_step_fraction": 0.9},
+)
+
+#: A solution whose value, recomputed from its dwells and splits through the model itself
+#: (rates, caps, budgets), differs from the solver's by more than this fraction is reported
+#: ``optimal_inaccurate``, with both values in the message.
+VALUE_CHECK_RTOL = 1e-5
 
 
 # ------------------------------------------------------------------------ validation
@@ -226,12 +255,14 @@ def optimal_split_ratio(
 class PowerSplitResult:
     """Outcome of one solve of the dwell-time and power-split program.
 
-    The arrays and the objective are set only when ``status`` is ``"optimal"`` or
-    ``"optimal_inaccurate"``; otherwise they are ``None``.
+    The arrays and the objective are set only when :attr:`ok`; otherwise they are ``None``.
     """
 
     status: str
-    """One of ``"optimal"``, ``"optimal_inaccurate"``, ``"infeasible"``, ``"unbounded"``, ``"solver_error"``."""
+    """One of :data:`STATUSES`: ``"optimal"``, ``"optimal_inaccurate"`` (a solution to a looser
+    tolerance than asked, e.g. from a fallback solver), ``"no_coverage"`` (no hover point
+    covers any node: nothing to serve, every amount zero), ``"infeasible"``, ``"unbounded"`` or
+    ``"solver_error"`` (no solver produced a solution; ``message`` says why)."""
     objective: float | None
     """Weighted value sum Gamma bits / D_ref + (1 - Gamma) joules / E_ref (counted amounts)."""
     dwell_s: np.ndarray | None
@@ -245,16 +276,44 @@ class PowerSplitResult:
     solve_time_s: float
     """Wall-clock time of the solve (including cvxpy's compilation on a first solve), s; set for every status."""
     solver: str
-    """Name of the cvxpy solver used (``""`` when no solver was needed or none was available)."""
+    """Name of the solver that produced the result (``"HIGHS"`` for the fixed-split linear
+    program; ``""`` when no solver was needed or none was available)."""
+    message: str = ""
+    """What went wrong, or which fallback gave the result (empty on a plain success)."""
 
     @property
     def ok(self) -> bool:
-        """Whether a solution is available (optimal or optimal_inaccurate)."""
-        return self.status in ("optimal", "optimal_inaccurate")
+        """Whether a solution is available (optimal, optimal_inaccurate or no_coverage)."""
+        return self.status in ("optimal", "optimal_inaccurate", "no_coverage")
 
 
-def _failed(status: str, solve_time_s: float, solver: str) -> PowerSplitResult:
-    return PowerSplitResult(status, None, None, None, None, None, solve_time_s, solver)
+def _failed(status: str, solve_time_s: float, solver: str, message: str = "") -> PowerSplitResult:
+    return PowerSplitResult(status, None, None, None, None, None, solve_time_s, solver, message)
+
+
+def _nothing_covered(shape: tuple[int, int]) -> PowerSplitResult:
+    """The answer when no hover point covers any node: no dwell, nothing delivered."""
+    nothing = np.zeros(shape)
+    return PowerSplitResult(
+        "no_coverage", 0.0, np.zeros(shape[0]), np.full(shape, np.nan), nothing, nothing.copy(), 0.0, "",
+        "no hover point covers any node",
+    )
+
+
+def _checked_solver(solver: Any) -> str | None:
+    """``solver`` if cvxpy has it installed and it handles the exponential cone (None: the
+    default), else ConfigError naming the allowed ones."""
+    if solver is None:
+        return None
+    cp = _cvxpy()
+    usable = [name for name in EXP_CONE_SOLVERS if name in cp.installed_solvers()]
+    if not isinstance(solver, str) or solver.upper() not in usable:
+        raise ConfigError(
+            f"solver = {solver!r} is not an installed cvxpy solver for the exponential cone; "
+            f"choose one of {', '.join(usable) or '(none installed: pip install clarabel)'}",
+            "solver",
+        )
+    return solver.upper()
 
 
 def default_solver() -> str | None:
@@ -292,8 +351,21 @@ class DwellSplitProblem:
         coverage_mask: (n_hover, n_nodes) bool.
         time_budget: include sum_k t_k <= mission_time_s.
         energy_budget: include sum_k dwell_power_w[k] t_k <= energy_budget_j.
-        solver: a cvxpy solver name; default :func:`default_solver` (Clarabel, else SCS).
+        solver: a cvxpy solver for the exponential cone (:data:`EXP_CONE_SOLVERS`, installed;
+            else ConfigError); default :func:`default_solver` (Clarabel, else SCS), which on
+            numerical failure is retried with :data:`CLARABEL_RETRIES`, then SCS (a solution
+            so found is ``optimal_inaccurate``). A solver named here is used alone.
         solver_options: keyword arguments passed to the solver (e.g. tolerances, iteration limits).
+        parametrized: compile once for fast re-solves (cvxpy's DPP; the default). False
+            compiles the values as constants at every solve, which is much faster for one
+            solve of a large problem (DPP compilation took 4 s against 0.1 s at 660 pairs,
+            84 s at 8,600): :func:`optimise_dwell_and_split` does so.
+
+    Conditioning: the program is solved in units of a time scale (the time budget, else the
+    longest dwell the energy budget allows), so dwell, split time, information and energy
+    variables are all of order one whatever the mission's length; and the minimum-energy
+    rows exist only when a minimum is asked for (zero rows there, redundant with the
+    variables' signs, made Clarabel fail from a few hundred pairs).
     """
 
     def __init__(
@@ -304,6 +376,7 @@ class DwellSplitProblem:
         energy_budget: bool = False,
         solver: str | None = None,
         solver_options: Mapping[str, Any] | None = None,
+        parametrized: bool = True,
     ) -> None:
         mask = np.asarray(coverage_mask)
         if mask.ndim != 2 or mask.dtype != bool:
@@ -321,13 +394,13 @@ class DwellSplitProblem:
         self.coverage_mask.setflags(write=False)
         self.time_budget = bool(time_budget)
         self.energy_budget = bool(energy_budget)
-        self.solver = solver
+        self.solver = _checked_solver(solver)
         self.solver_options = dict(solver_options or {})
+        self.parametrized = bool(parametrized)
         self._hover_of_pair, self._node_of_pair = np.nonzero(self.coverage_mask)
         self._served_nodes = np.flatnonzero(self.coverage_mask.any(axis=0))
-        self._problem: cp.Problem | None = None
-        self._vars: dict[str, Any] = {}
-        self._params: dict[str, Any] = {}
+        # built on first use, without and with the minimum-energy rows
+        self._built: dict[bool, tuple[Any, dict[str, Any], dict[str, Any]]] = {}
 
     @property
     def n_hover(self) -> int:
@@ -344,14 +417,22 @@ class DwellSplitProblem:
 
     @property
     def problem(self) -> cp.Problem:
-        """The parametrised cvxpy problem, built on first access (needs at least one covered pair)."""
-        if self._problem is None:
-            if self.n_pairs == 0:
-                raise ConfigError("no hover point covers any node: there is nothing to optimise", "coverage_mask")
-            self._build()
-        return self._problem  # type: ignore[return-value]
+        """The parametrised cvxpy problem without minimum-energy rows, built on first access
+        (needs at least one covered pair)."""
+        return self._problem(False)[0]
 
-    def _build(self) -> None:
+    def _problem(self, with_minimum: bool) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+        """(problem, variables, parameters), with or without the minimum-energy rows."""
+        if self.n_pairs == 0:
+            raise ConfigError("no hover point covers any node: there is nothing to optimise", "coverage_mask")
+        if with_minimum not in self._built:
+            self._built[with_minimum] = self._build(with_minimum)
+        return self._built[with_minimum]
+
+    def _build(self, with_minimum: bool) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+        """The program in units of the time scale T_s: dwell tau = t / T_s, split time b =
+        beta / T_s, information and energy per T_s; budgets and caps are divided by T_s when
+        the parameters are set."""
         cp = _cvxpy()
         import scipy.sparse as sp
 
@@ -360,10 +441,10 @@ class DwellSplitProblem:
         node_row = np.searchsorted(self._served_nodes, self._node_of_pair)
         per_node = sp.csr_matrix((np.ones(n_pairs), (node_row, np.arange(n_pairs))), shape=(n_served, n_pairs))
 
-        dwell = cp.Variable(self.n_hover, nonneg=True, name="dwell_s")
-        beta = cp.Variable(n_pairs, nonneg=True, name="split_time_s")  # alpha * t, s
-        info = cp.Variable(n_pairs, nonneg=True, name="info_nat_per_hz")  # counted bits * ln2 / B
-        energy = cp.Variable(n_pairs, nonneg=True, name="energy_ref_units")  # counted joules / E_ref
+        dwell = cp.Variable(self.n_hover, nonneg=True, name="dwell")  # t / T_s
+        beta = cp.Variable(n_pairs, nonneg=True, name="split_time")  # alpha t / T_s
+        info = cp.Variable(n_pairs, nonneg=True, name="info")  # counted bits ln2 / (B T_s)
+        energy = cp.Variable(n_pairs, nonneg=True, name="energy")  # counted joules / (E_ref T_s)
 
         p = {
             "log_c": cp.Parameter(n_pairs, name="log_c"),
@@ -372,7 +453,6 @@ class DwellSplitProblem:
             "harvest_rate": cp.Parameter(n_pairs, nonneg=True, name="harvest_rate_per_s"),
             "info_cap": cp.Parameter(n_served, nonneg=True, name="info_cap"),
             "room": cp.Parameter(n_served, nonneg=True, name="room"),
-            "min_energy": cp.Parameter(n_served, nonneg=True, name="min_energy"),
             "w_info": cp.Parameter(nonneg=True, name="w_info"),
             "w_energy": cp.Parameter(nonneg=True, name="w_energy"),
             "tie_break": cp.Parameter(nonneg=True, name="dwell_tie_break"),
@@ -388,20 +468,21 @@ class DwellSplitProblem:
             energy <= cp.multiply(p["harvest_rate"], t_pair - beta),
             per_node @ info <= p["info_cap"],
             per_node @ energy <= p["room"],
-            per_node @ energy >= p["min_energy"],
         ]
+        if with_minimum:
+            p["min_energy"] = cp.Parameter(n_served, nonneg=True, name="min_energy")
+            constraints.append(per_node @ energy >= p["min_energy"])
         if self.time_budget:
-            p["time_budget"] = cp.Parameter(nonneg=True, name="mission_time_s")
+            p["time_budget"] = cp.Parameter(nonneg=True, name="mission_time")
             constraints.append(cp.sum(dwell) <= p["time_budget"])
         if self.energy_budget:
             p["dwell_power"] = cp.Parameter(self.n_hover, nonneg=True, name="dwell_power_w")
-            p["energy_budget"] = cp.Parameter(nonneg=True, name="energy_budget_j")
+            p["energy_budget"] = cp.Parameter(nonneg=True, name="energy_budget")
             constraints.append(p["dwell_power"] @ dwell <= p["energy_budget"])
         value = p["w_info"] * cp.sum(info) + p["w_energy"] * cp.sum(energy)
         objective = cp.Maximize(value - p["tie_break"] * cp.sum(dwell))
-        self._problem = cp.Problem(objective, constraints)
-        self._vars = {"dwell": dwell, "beta": beta, "info": info, "energy": energy, "value": value}
-        self._params = p
+        problem = cp.Problem(objective, constraints)
+        return problem, {"dwell": dwell, "beta": beta, "info": info, "energy": energy, "value": value}, p
 
     def solve(
         self,
@@ -419,6 +500,7 @@ class DwellSplitProblem:
         min_energy_j: ArrayLike | None = None,
         data_ref_bits: float = 1.0,
         energy_ref_j: float = 1.0,
+        split_ratio: float | None = None,
     ) -> PowerSplitResult:
         """Set the parameters and solve; see :func:`optimise_dwell_and_split` for the arguments.
 
@@ -442,21 +524,23 @@ class DwellSplitProblem:
         gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
         budgets = self._budgets(mission_time_s, energy_budget_j, dwell_power_w)
 
-        solver = self.solver or default_solver()
         unserved = np.ones(shape[1], dtype=bool)
         unserved[self._served_nodes] = False
         if np.any(min_energy[unserved] > 0):
             # no cone constraint needed to see that an uncovered node receives nothing
-            return _failed("infeasible", 0.0, "")
+            return _failed("infeasible", 0.0, "", "a node no hover point covers has a minimum energy")
         if self.n_pairs == 0:
-            nothing = np.zeros(shape)
-            split = np.full(shape, np.nan)
-            return PowerSplitResult("optimal", 0.0, np.zeros(shape[0]), split, nothing, nothing.copy(), 0.0, "")
+            return _nothing_covered(shape)
+        if split_ratio is not None:
+            alpha = _scalar("split_ratio", split_ratio, hi=1.0)
+            return self._solve_fixed_split(alpha, gamma, p_av, data, room, min_energy, budgets, gw, bw, eta, d_ref, e_ref)
 
+        solver = self.solver or default_solver()
         if solver is None:
-            return _failed("solver_error", 0.0, "")  # no installed solver handles the exponential cone
-        problem = self.problem
-        pr = self._params
+            return _failed("solver_error", 0.0, "", "no installed cvxpy solver handles the exponential cone")
+        with_minimum = bool(np.any(min_energy > 0))
+        problem, v, pr = self._problem(with_minimum)
+        scale = _time_scale(budgets)
         g = gamma[k_of, i_of]
         c = np.maximum(g, 1.0)
         served = self._served_nodes
@@ -464,31 +548,125 @@ class DwellSplitProblem:
         pr["inv_c"].value = 1.0 / c
         pr["snr_over_c"].value = g / c
         pr["harvest_rate"].value = eta * p_av[k_of, i_of] / e_ref
-        pr["info_cap"].value = data[served] * LN2 / bw
-        pr["room"].value = room[served] / e_ref
-        pr["min_energy"].value = min_energy[served] / e_ref
+        # caps beyond what the whole budget could deliver never bind: clip them to that, so
+        # that no variable's range dwarfs what it can reach (exact, and better conditioned)
+        longest = _longest_dwell_s(budgets)
+        reach_info = np.zeros(shape[1])
+        np.maximum.at(reach_info, i_of, np.log1p(g) * longest)
+        reach_room = np.zeros(shape[1])
+        np.maximum.at(reach_room, i_of, eta * p_av[k_of, i_of] / e_ref * longest)
+        pr["info_cap"].value = np.minimum(data * LN2 / bw, reach_info)[served] / scale
+        pr["room"].value = np.minimum(room / e_ref, reach_room)[served] / scale
+        if with_minimum:
+            pr["min_energy"].value = min_energy[served] / e_ref / scale
         pr["w_info"].value = gw * bw / (LN2 * d_ref)
         pr["w_energy"].value = 1.0 - gw
         best_rate = float(np.max(pr["w_info"].value * np.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value))
         pr["tie_break"].value = DWELL_TIE_BREAK * best_rate
         for name, value in budgets.items():
-            pr[name].value = value
+            pr[name].value = value / scale if name in ("time_budget", "energy_budget") else value
 
-        cp = _cvxpy()
+        attempts = [(solver, self.solver_options, "")]
+        if self.solver is None:  # the default: retry numerical failures, looser, then with SCS
+            if solver == "CLARABEL":
+                attempts += [("CLARABEL", options, f"Clarabel with {options}") for options in CLARABEL_RETRIES]
+            if solver != "SCS" and "SCS" in _cvxpy().installed_solvers():
+                attempts.append(("SCS", {}, "SCS after Clarabel failed"))
+        start = time.perf_counter()
+        status, note = "solver_error", ""
+        notes = []
+        for name, options, fallback in attempts:
+            status, note = _run(problem, name, {**options, "ignore_dpp": not self.parametrized})
+            if not fallback and status != "solver_error":
+                solver = name
+                break
+            if fallback and status == "optimal":  # a fallback counts only when it converged
+                status, note, solver = "optimal_inaccurate", f"solved by {fallback}", name
+                break
+            notes.append(note or f"{name}: {status}")
+            status = "solver_error"
+        if status == "solver_error":
+            note = "; ".join(notes)
+        elapsed = time.perf_counter() - start
+        if status not in ("optimal", "optimal_inaccurate"):
+            return _failed(status, elapsed, solver, note)
+        return self._result(
+            status, float(v["value"].value) * scale, v, scale, bw, e_ref, elapsed, solver, note, (pr, g, budgets, scale)
+        )
+
+    def _solve_fixed_split(
+        self, alpha: float, gamma: np.ndarray, p_av: np.ndarray, data: np.ndarray, room: np.ndarray,
+        min_energy: np.ndarray, budgets: dict[str, Any], gw: float, bw: float, eta: float, d_ref: float,
+        e_ref: float,
+    ) -> PowerSplitResult:
+        """The program with every split ratio fixed at ``alpha``: a linear program (HiGHS).
+
+        Each pair then carries fixed rates per second of dwell, ln(1 + alpha gamma) nats/Hz
+        and eta (1 - alpha) P_av / E_ref, so what remains is which hover points to dwell at
+        and how long: variables the dwells and each served node's counted information and
+        energy (bounded by its caps, the energy from below by its minimum), rows the two
+        per-node links between them and the budgets. In units of the time scale, as the
+        conic program. A node's counted amounts are shared among its pairs in proportion
+        to what each pair delivers.
+        """
+        from scipy import sparse
+        from scipy.optimize import linprog
+
+        k_of, i_of = self._hover_of_pair, self._node_of_pair
+        served = self._served_nodes
+        node_row = np.searchsorted(served, i_of)
+        n_hover, n_served = self.n_hover, served.size
+        scale = _time_scale(budgets)
+        info_rate = np.log1p(alpha * gamma[k_of, i_of])
+        energy_rate = eta * (1.0 - alpha) * p_av[k_of, i_of] / e_ref
+        w_info, w_energy = gw * bw / (LN2 * d_ref), 1.0 - gw
+        tie = DWELL_TIE_BREAK * float(np.max(w_info * info_rate + w_energy * energy_rate))
+
+        # columns: dwell (K), information (S), energy (S); rows: information and energy links
+        info_col, energy_col = n_hover + np.arange(n_served), n_hover + n_served + np.arange(n_served)
+        rows = np.concatenate([node_row, n_served + node_row, np.arange(n_served), n_served + np.arange(n_served)])
+        cols = np.concatenate([k_of, k_of, info_col, energy_col])
+        vals = np.concatenate([-info_rate, -energy_rate, np.ones(n_served), np.ones(n_served)])
+        links = sparse.csr_array((vals, (rows, cols)), shape=(2 * n_served, n_hover + 2 * n_served))
+        budget_rows, budget_caps = [], []
+        if "time_budget" in budgets:
+            budget_rows.append(np.concatenate([np.ones(n_hover), np.zeros(2 * n_served)]))
+            budget_caps.append(budgets["time_budget"] / scale)
+        if "energy_budget" in budgets:
+            budget_rows.append(np.concatenate([budgets["dwell_power"], np.zeros(2 * n_served)]))
+            budget_caps.append(budgets["energy_budget"] / scale)
+        a_ub = sparse.vstack([links, sparse.csr_array(np.array(budget_rows))]).tocsr()
+        b_ub = np.concatenate([np.zeros(2 * n_served), budget_caps])
+        cost = np.concatenate([np.full(n_hover, tie), np.full(n_served, -w_info), np.full(n_served, -w_energy)])
+        lower = np.concatenate([np.zeros(n_hover + n_served), min_energy[served] / e_ref / scale])
+        upper = np.concatenate([np.full(n_hover, np.inf), data[served] * LN2 / bw / scale, room[served] / e_ref / scale])
+        if np.any(lower > upper):
+            return _failed("infeasible", 0.0, "HIGHS", "a node's minimum energy exceeds its storage room")
 
         start = time.perf_counter()
-        try:
-            with warnings.catch_warnings():
-                # an inaccurate solution is reported by the status "optimal_inaccurate"
-                warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
-                problem.solve(solver=solver, **self.solver_options)
-        except cp.error.SolverError:
-            return _failed("solver_error", time.perf_counter() - start, solver)
+        lp = linprog(cost, A_ub=a_ub, b_ub=b_ub, bounds=np.column_stack([lower, upper]), method="highs")
         elapsed = time.perf_counter() - start
-        status = _status(problem.status)
-        if status not in ("optimal", "optimal_inaccurate"):
-            return _failed(status, elapsed, solver)
-        return self._result(status, float(self._vars["value"].value), bw, e_ref, elapsed, solver)
+        if lp.status != 0:
+            status = {2: "infeasible", 3: "unbounded"}.get(lp.status, "solver_error")
+            return _failed(status, elapsed, "HIGHS", f"HiGHS: {lp.message}")
+
+        x = np.maximum(lp.x, 0.0)
+        dwell = x[:n_hover] * scale
+        counted_info, counted_energy = x[info_col], x[energy_col]
+        raw_info, raw_energy = info_rate * x[k_of], energy_rate * x[k_of]
+        node_info = np.bincount(node_row, weights=raw_info, minlength=n_served)
+        node_energy = np.bincount(node_row, weights=raw_energy, minlength=n_served)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            info_share = np.where(node_info[node_row] > 0, raw_info / node_info[node_row], 0.0)
+            energy_share = np.where(node_energy[node_row] > 0, raw_energy / node_energy[node_row], 0.0)
+        shape = self.coverage_mask.shape
+        bits, energy, split = np.zeros(shape), np.zeros(shape), np.full(shape, np.nan)
+        bits[k_of, i_of] = info_share * counted_info[node_row] * scale * bw / LN2
+        energy[k_of, i_of] = energy_share * counted_energy[node_row] * scale * e_ref
+        used = dwell[k_of] > ZERO_DWELL_FRACTION * max(float(dwell.max()), np.finfo(float).tiny)
+        split[k_of[used], i_of[used]] = alpha
+        objective = float(w_info * counted_info.sum() + w_energy * counted_energy.sum()) * scale
+        return PowerSplitResult("optimal", objective, dwell, split, bits, energy, elapsed, "HIGHS")
 
     def _budgets(self, mission_time_s: Any, energy_budget_j: Any, dwell_power_w: Any) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -525,22 +703,81 @@ class DwellSplitProblem:
         return out
 
     def _result(
-        self, status: str, objective: float, bw: float, e_ref: float, elapsed: float, solver: str
+        self, status: str, objective: float, v: dict[str, Any], scale: float, bw: float, e_ref: float,
+        elapsed: float, solver: str, note: str, check: tuple[Any, ...],
     ) -> PowerSplitResult:
         k_of, i_of = self._hover_of_pair, self._node_of_pair
         shape = self.coverage_mask.shape
-        v = self._vars
-        dwell = np.maximum(np.asarray(v["dwell"].value, dtype=float), 0.0)
+        dwell = np.maximum(np.asarray(v["dwell"].value, dtype=float), 0.0) * scale
         t_pair = dwell[k_of]
-        beta = np.clip(np.asarray(v["beta"].value, dtype=float), 0.0, t_pair)
+        beta = np.clip(np.asarray(v["beta"].value, dtype=float) * scale, 0.0, t_pair)
         positive = t_pair > ZERO_DWELL_FRACTION * max(float(dwell.max()), np.finfo(float).tiny)
         split = np.full(shape, np.nan)
         split[k_of[positive], i_of[positive]] = np.clip(beta[positive] / t_pair[positive], 0.0, 1.0)
         bits = np.zeros(shape)
-        bits[k_of, i_of] = np.maximum(np.asarray(v["info"].value, dtype=float), 0.0) * bw / LN2
+        bits[k_of, i_of] = np.maximum(np.asarray(v["info"].value, dtype=float), 0.0) * scale * bw / LN2
         energy = np.zeros(shape)
-        energy[k_of, i_of] = np.maximum(np.asarray(v["energy"].value, dtype=float), 0.0) * e_ref
-        return PowerSplitResult(status, objective, dwell, split, bits, energy, elapsed, solver)
+        energy[k_of, i_of] = np.maximum(np.asarray(v["energy"].value, dtype=float), 0.0) * scale * e_ref
+        achieved = self._achievable_value(dwell, split, *check)
+        if abs(achieved - objective) > VALUE_CHECK_RTOL * max(1.0, abs(objective)):
+            status = "optimal_inaccurate"
+            note = f"{note + '; ' if note else ''}the solver's value {objective:.9g}, its dwells and splits give {achieved:.9g}"
+        return PowerSplitResult(status, objective, dwell, split, bits, energy, elapsed, solver, note)
+
+    def _achievable_value(self, dwell: np.ndarray, split: np.ndarray, pr: dict[str, Any], g: np.ndarray,
+                          budgets: Mapping[str, Any], scale: float) -> float:
+        """The value that ``dwell`` (K,) s and ``split`` (K, N) earn in the model itself (the
+        parameters ``pr`` as set for this solve, SNRs ``g`` per pair): rates per pair, caps
+        per node, the dwells scaled down into the budgets should they overshoot."""
+        k_of = self._hover_of_pair
+        node_row = np.searchsorted(self._served_nodes, self._node_of_pair)
+        fits = 1.0
+        if "time_budget" in budgets:
+            fits = min(fits, float(budgets["time_budget"]) / max(float(dwell.sum()), 1e-300))
+        if "energy_budget" in budgets:
+            fits = min(fits, float(budgets["energy_budget"]) / max(float(budgets["dwell_power"] @ dwell), 1e-300))
+        t = dwell[k_of] * min(1.0, fits) / scale  # in the program's unit of time
+        alpha = np.nan_to_num(split[k_of, self._node_of_pair])
+        n = self._served_nodes.size
+        info = np.bincount(node_row, weights=t * np.log1p(alpha * g), minlength=n)
+        joules = np.bincount(node_row, weights=t * (1.0 - alpha) * pr["harvest_rate"].value, minlength=n)
+        info = np.minimum(info, pr["info_cap"].value)
+        joules = np.minimum(joules, pr["room"].value)
+        return float(pr["w_info"].value * info.sum() + pr["w_energy"].value * joules.sum()) * scale
+
+
+def _longest_dwell_s(budgets: Mapping[str, Any]) -> float:
+    """The most dwell any one hover point can get under the budgets, s."""
+    longest = math.inf
+    if "time_budget" in budgets:
+        longest = float(budgets["time_budget"])
+    if "energy_budget" in budgets:
+        longest = min(longest, float(budgets["energy_budget"]) / float(np.min(budgets["dwell_power"])))
+    return longest
+
+
+def _time_scale(budgets: Mapping[str, Any]) -> float:
+    """The program's unit of time, s: the time budget, else the longest dwell the energy
+    budget pays for (1 s if that is zero)."""
+    if "time_budget" in budgets:
+        scale = float(budgets["time_budget"])
+    else:
+        scale = float(budgets["energy_budget"]) / float(np.min(budgets["dwell_power"]))
+    return scale if scale > 0 else 1.0
+
+
+def _run(problem: Any, solver: str, options: Mapping[str, Any]) -> tuple[str, str]:
+    """Solve ``problem`` with ``solver``; (status, message)."""
+    cp = _cvxpy()
+    try:
+        with warnings.catch_warnings():
+            # an inaccurate solution is reported by the status "optimal_inaccurate"
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
+            problem.solve(solver=solver, **options)
+    except cp.error.SolverError as exc:
+        return "solver_error", f"{solver}: {str(exc).splitlines()[0]}"
+    status = _status(problem.status)
+    return status, ("" if status == "optimal" else f"{solver}: {problem.status}")
 
 
 def optimise_dwell_and_split(
@@ -560,6 +797,7 @@ def optimise_dwell_and_split(
     energy_ref_j: float = 1.0,
     solver: str | None = None,
     solver_options: Mapping[str, Any] | None = None,
+    split_ratio: float | None = None,
 ) -> PowerSplitResult:
     """Optimal dwell times and split ratios for K hover points and N nodes (build and solve once).
 
@@ -577,8 +815,13 @@ def optimise_dwell_and_split(
             ``energy_budget_j``.
         min_energy_j: (N,) minimum energy each node must receive, J (default none).
         data_ref_bits, energy_ref_j: the reward's references D_ref and E_ref.
-        solver: a cvxpy solver name (default Clarabel, else SCS).
+        solver: a cvxpy solver for the exponential cone (default Clarabel, with fallbacks;
+            see :class:`DwellSplitProblem`); an unknown or unsuitable name is a ConfigError.
         solver_options: keyword arguments passed to the solver.
+        split_ratio: fix every split ratio at this alpha in [0, 1] (as the simulator does,
+            with the scenario's ``split_ratio``): only the dwells remain, a linear program
+            solved by HiGHS at any size (``solver`` does not apply). ``None``: optimise the
+            splits too (the conic program).
 
     At least one budget is required. Bad input raises :class:`~swiptopt.errors.ConfigError`
     naming the argument; an infeasible or failed solve returns a result with that status.
@@ -593,6 +836,7 @@ def optimise_dwell_and_split(
         p_av > 0, time_budget=mission_time_s is not None, energy_budget=energy_budget_j is not None,
         solver=solver,
         solver_options=solver_options,
+        parametrized=False,  # one solve: compiling for re-solves would only cost time
     )
     return problem.solve(
         snr_linear=gamma,
@@ -608,6 +852,7 @@ def optimise_dwell_and_split(
         min_energy_j=min_energy_j,
         data_ref_bits=data_ref_bits,
         energy_ref_j=energy_ref_j,
+        split_ratio=split_ratio,
     )
 
 

@@ -4,20 +4,36 @@ The AUV visits the start and the hover points once each (SPEC 6, ``tsp``). Two O
 back ends, each a thin wrapper that keeps the solver idiom visible:
 
 - ``"exact"``: CP-SAT, one boolean literal per arc tied together by a circuit constraint
-  (``add_circuit``, formerly ``AddCircuit``), minimising the integer-scaled arc costs. Proves optimality on small
-  instances; ``proven_optimal`` is true only when CP-SAT says OPTIMAL.
+  (``add_circuit``), minimising the integer arc costs. Proves optimality on small and
+  medium instances; ``proven_optimal`` is true only when CP-SAT says OPTIMAL.
 - ``"routing"``: the OR-Tools routing library, PATH_CHEAPEST_ARC for a first tour, then
-  guided local search until the time limit. Fast and near-optimal on large instances,
-  never a proof.
-- ``"auto"``: exact up to :data:`AUTO_EXACT_MAX_NODES` nodes, routing above.
+  guided local search. Near-optimal on large instances, never a proof.
+- ``"auto"``: exact up to :data:`AUTO_EXACT_MAX_NODES` nodes; above, routing followed by
+  CP-SAT started from routing's order (which proves the optimum or keeps the shorter of the
+  two) up to :data:`AUTO_POLISH_MAX_NODES` nodes, and routing alone beyond.
 
 Instances of at most three nodes are solved by enumeration whatever the method (one or two
 candidate orders), reported as method ``"enumeration"``.
 
-Costs. Both solvers need integer arc costs, so the float matrix is multiplied by
-``COST_SCALE_TARGET / max(off-diagonal entries)`` and rounded: the largest entry becomes 1e6 and each arc
-is off by at most 0.5 unit, a relative error of 5e-7 of the longest arc. The reported
-``length`` is always recomputed from the float matrix.
+Reproducibility (SPEC 6: a result must not depend on the machine's speed or load). Each
+search stops on a deterministic budget: CP-SAT runs one worker with a fixed seed and stops
+at ``deterministic_time`` (CP-SAT's own work measure, the same on every machine); guided
+local search stops after ``solution_limit`` solutions. ``time_limit_s`` is only a
+wall-clock safety net: when it stops a search first, the result's status is
+``"time_limit"`` (a valid order that another run may not repeat). Integer costs are
+tie-broken (below) so that no two orders cost the same and a proven optimum is one order,
+whichever way the search reached it.
+
+Costs. Both solvers need integer arc costs. The float matrix is multiplied by
+``COST_SCALE_TARGET / max(off-diagonal entries)`` and rounded: the largest entry becomes 1e6
+and each arc is off by at most 0.5 unit, a relative error of 5e-7 of the longest arc. That
+primary cost is then multiplied by ``n * tie_range`` and a fixed pseudo-random tie-break in
+``[0, tie_range)`` is added to each arc: an order's tie-breaks sum to less than
+``n * tie_range``, so an order that is shorter in the primary cost is always cheaper, and
+orders of equal primary cost (frequent between grid cells, and every symmetric tour with its
+reverse) almost never cost the same. The tie-breaks depend only on n, so the same matrix
+always gets the same costs. The reported ``length`` is always recomputed from the float
+matrix.
 
 Open paths (``closed=False``: start at ``start``, end anywhere) add a dummy node reached at
 zero cost from every node and leaving only to the start, so the best circuit through it is
@@ -46,19 +62,47 @@ from swiptopt.errors import ConfigError
 METHODS = ("auto", "exact", "routing")
 """Accepted values of ``solve_tsp(method=...)``."""
 
-AUTO_EXACT_MAX_NODES = 20
-"""Largest instance ``method="auto"`` gives to CP-SAT. Measured on a 2-core machine with a
-second solver process running beside it, 20 seeds each of uniform, clustered, open-path
-and asymmetric instances: at 20 nodes the proof took at most 0.35 s (median 0.06-0.09 s),
-well inside the default 1 s limit; at 25 nodes up to 0.65 s, at 40 nodes up to 2.6 s.
-Above it routing's near-optimal tour within the limit is the safer bet."""
+STATUSES = ("optimal", "feasible", "time_limit", "no_solution")
+"""Values of :attr:`TspResult.status`."""
 
-CP_SAT_WORKERS = 8
-"""CP-SAT portfolio size, fixed rather than CP-SAT's default of one worker per core. Its
-8-worker portfolio adds LP-based subsolvers (in a logged run on 20 clustered points,
-``reduced_costs`` closed the bound) that the 2-worker default of a 2-core machine lacks:
-there, 20 clustered points took up to 4 s to prove, against 0.06 s with 8 workers. All the
-timings quoted here are with 8 workers."""
+AUTO_EXACT_MAX_NODES = 40
+"""Largest instance ``method="auto"`` gives to CP-SAT alone. With one worker at
+linearization level 2, CP-SAT proved every one of 32 instances of 40 nodes (uniform,
+clustered, grid-cell and asymmetric; closed and open) optimal within 0.19 deterministic
+seconds (median 0.07), and TSPLIB's eil51, berlin52, st70 and eil76 within 0.2-0.9."""
+
+AUTO_POLISH_MAX_NODES = 80
+"""Above :data:`AUTO_EXACT_MAX_NODES` and up to this size, ``method="auto"`` runs routing and
+then CP-SAT from routing's order (a complete hint): on eil51, st70 and eil76 CP-SAT then
+proved the optimum within its default budget, from routing's 0.3-2.4 % gaps. Larger
+instances get routing alone (CP-SAT's LP grows with the n^2 arcs)."""
+
+CP_SAT_WORKERS = 1
+"""CP-SAT runs one worker: a parallel portfolio's result depends on how the workers' threads
+are scheduled, one worker's does not."""
+
+CP_SAT_SEED = 0
+"""CP-SAT's random seed (fixed, so one worker repeats its search exactly)."""
+
+CP_SAT_LINEARIZATION_LEVEL = 2
+"""CP-SAT's ``linearization_level``: 2 adds the circuit's LP relaxation with its cuts to the
+single worker (level 1, the default, leaves the LP weak for a circuit)."""
+
+DEFAULT_DETERMINISTIC_TIME = 1.0
+"""CP-SAT's ``max_deterministic_time`` when ``deterministic_time`` is not given, in CP-SAT's
+deterministic seconds (a count of its work, not of the clock): five times the most that any
+40-node instance measured needed for its proof (see :data:`AUTO_EXACT_MAX_NODES`). On the
+2-core development machine one deterministic second took 5-10 s of wall-clock time."""
+
+DEFAULT_SOLUTION_LIMIT = 100
+"""Guided local search's ``solution_limit`` when ``solution_limit`` is not given. With it,
+routing alone reached 0.2 % on eil51, 0 % on berlin52, 0.3 % on st70, 1.7 % on eil76 and
+0.5 % on kroA100 in 0.4-3 s (the gaps move by a percent or two with any change to the
+instance or the costs: guided local search is chaotic, hence the CP-SAT stage of ``auto``)."""
+
+DEFAULT_TIME_LIMIT_S = 60.0
+"""Default wall-clock safety net, s: far above what the default budgets need, so it stops a
+search only on a machine that is badly overloaded."""
 
 GLS_LAMBDA = 0.3
 """Guided local search penalty weight (OR-Tools default 0.1), used with the multi-armed
@@ -68,7 +112,14 @@ bandit choice among local search operators. Measured on 60 random Euclidean inst
 a few % off; on eil51 and berlin52 it reaches 0.2 % and 0 % in 0.3 s."""
 
 COST_SCALE_TARGET = 1_000_000
-"""The largest matrix entry becomes this many integer cost units (see the module docstring)."""
+"""The largest matrix entry becomes this many primary cost units (see the module docstring)."""
+
+TIE_RANGE_MAX = 1 << 20
+"""Largest tie-break range; smaller for huge n so that a tour's cost fits in 62 bits."""
+
+TIE_SEED = 20230713
+"""Seed of the fixed pseudo-random tie-breaks (any fixed value; changing it may change which
+of several equally short orders is returned)."""
 
 HELD_KARP_MAX_NODES = 13
 """Largest instance :func:`held_karp` accepts (2^12 subsets x 12 end nodes)."""
@@ -87,11 +138,15 @@ class TspResult:
     proven_optimal: bool
     """True only when the method proved no shorter order exists (CP-SAT OPTIMAL, enumeration)."""
     status: str
-    """``"optimal"``, ``"feasible"`` (a solution without proof) or ``"no_solution"``."""
+    """``"optimal"`` (proven), ``"feasible"`` (a solution without proof, the search stopped by
+    its deterministic budget: every run gives this order), ``"time_limit"`` (a solution, but
+    the wall-clock safety net stopped the search first, so another run may give another
+    order) or ``"no_solution"``."""
     solve_time_s: float
     """Wall-clock time of the whole call, model building included, s."""
     method: str
-    """What actually ran: ``"exact"``, ``"routing"`` or ``"enumeration"``."""
+    """What actually ran: ``"exact"``, ``"routing"``, ``"routing+exact"`` (routing, then CP-SAT
+    from its order; ``method="auto"`` on medium instances) or ``"enumeration"``."""
 
 
 def tour_length(distance_matrix: ArrayLike, order: Sequence[int], closed: bool) -> float:
@@ -119,8 +174,10 @@ def solve_tsp(
     *,
     start: int = 0,
     closed: bool = True,
-    time_limit_s: float = 1.0,
+    time_limit_s: float = DEFAULT_TIME_LIMIT_S,
     method: str = "auto",
+    deterministic_time: float | None = None,
+    solution_limit: int | None = None,
 ) -> TspResult:
     """Shortest order visiting every node of ``distance_matrix`` once, from ``start``.
 
@@ -130,11 +187,18 @@ def solve_tsp(
         start: the first node of the order.
         closed: True for a tour returning to ``start``; False for an open path ending
             anywhere.
-        time_limit_s: the solver's time limit, s (CP-SAT stops at it; guided local search
-            always runs until it).
-        method: ``"exact"`` (CP-SAT), ``"routing"`` (OR-Tools routing) or ``"auto"``.
+        time_limit_s: wall-clock safety net, s. The searches stop on their deterministic
+            budgets; should this limit stop one first, the status is ``"time_limit"``.
+        method: ``"exact"`` (CP-SAT), ``"routing"`` (OR-Tools routing) or ``"auto"`` (module
+            docstring).
+        deterministic_time: CP-SAT's work budget in its deterministic seconds (default
+            :data:`DEFAULT_DETERMINISTIC_TIME`); used by the CP-SAT stage.
+        solution_limit: guided local search stops after this many solutions (default
+            :data:`DEFAULT_SOLUTION_LIMIT`); used by the routing stage.
 
-    Raises ConfigError (naming the argument) on a bad matrix, start, method or time limit.
+    The same arguments give the same order on any machine unless the status is
+    ``"time_limit"``. Raises ConfigError (naming the argument) on a bad matrix, start,
+    method or limit.
     """
     began = time.perf_counter()
     matrix = _validated_matrix(distance_matrix)
@@ -142,24 +206,38 @@ def solve_tsp(
     start = _validated_start(start, n)
     if method not in METHODS:
         raise ConfigError(f"method must be one of {', '.join(METHODS)}; got {method!r}", "method")
-    if isinstance(time_limit_s, bool) or not isinstance(time_limit_s, numbers.Real) or not (
-        math.isfinite(time_limit_s) and time_limit_s > 0
-    ):
-        raise ConfigError(f"time_limit_s must be a positive finite number of seconds, got {time_limit_s!r}", "time_limit_s")
+    time_limit_s = _positive_real("time_limit_s", time_limit_s, "seconds")
+    work_s = _positive_real(
+        "deterministic_time", DEFAULT_DETERMINISTIC_TIME if deterministic_time is None else deterministic_time,
+        "deterministic seconds",
+    )
+    limit = DEFAULT_SOLUTION_LIMIT if solution_limit is None else solution_limit
+    if isinstance(limit, bool) or not isinstance(limit, numbers.Integral) or limit < 1:
+        raise ConfigError(f"solution_limit must be a positive integer, got {solution_limit!r}", "solution_limit")
     closed = bool(closed)
 
     if n <= 3:
         order, status, proven = _enumerate(matrix, start, closed), "optimal", True
         ran = "enumeration"
     else:
-        ran = method if method != "auto" else ("exact" if n <= AUTO_EXACT_MAX_NODES else "routing")
-        costs = _integer_costs(matrix)
-        solve = _solve_exact if ran == "exact" else _solve_routing
-        order, status, proven = solve(costs, start, closed, float(time_limit_s))
+        ran = method
+        if method == "auto":
+            ran = "exact" if n <= AUTO_EXACT_MAX_NODES else "routing+exact" if n <= AUTO_POLISH_MAX_NODES else "routing"
+        order, status, proven = [], "no_solution", False
+        if ran.startswith("routing"):
+            order, status, proven = _solve_routing(_integer_costs(matrix), start, closed, int(limit), time_limit_s)
+        if ran.endswith("exact"):
+            left_s = time_limit_s - (time.perf_counter() - began)
+            if left_s <= 0:
+                status = "time_limit"  # the routing stage used up the safety net
+            else:
+                costs = _integer_costs(matrix, tie_break=True)
+                found = _solve_exact(costs, start, closed, work_s, left_s, order or None)
+                order, status, proven = _better(matrix, closed, (order, status, proven), found)
 
     length = tour_length(matrix, order, closed) if order else math.inf
     return TspResult(
-        order=tuple(order),
+        order=tuple(int(v) for v in order),
         length=length,
         proven_optimal=proven,
         status=status,
@@ -235,16 +313,59 @@ def _validated_start(start: int, n: int) -> int:
     return int(start)
 
 
-def _integer_costs(matrix: np.ndarray) -> np.ndarray:
-    """The matrix scaled so its largest entry is ``COST_SCALE_TARGET``, rounded to int64.
+def _positive_real(name: str, value: object, unit: str) -> float:
+    """``value`` as a positive finite float, or ConfigError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{name} must be a positive finite number of {unit}, got {value!r}", name)
+    return float(value)
 
-    The diagonal is zeroed: neither model uses it, and it must not set the scale.
+
+def tie_range(n: int) -> int:
+    """The tie-break range for n nodes: :data:`TIE_RANGE_MAX`, or less if a tour's integer
+    cost (n + 1 arcs of at most ``COST_SCALE_TARGET * n * range`` each) would pass 2^62."""
+    fits = (1 << 62) // (COST_SCALE_TARGET * (n + 1) * (n + 1))
+    return int(max(1, min(TIE_RANGE_MAX, fits)))
+
+
+def _integer_costs(matrix: np.ndarray, *, tie_break: bool = False) -> np.ndarray:
+    """int64 arc costs: the primary cost (the matrix scaled so its largest entry is
+    ``COST_SCALE_TARGET``, rounded); with ``tie_break``, times ``n * tie_range(n)`` plus each
+    arc's fixed tie-break in ``[0, tie_range(n))`` (module docstring).
+
+    CP-SAT gets the tie-broken costs, so that its proven optimum is one order. Routing gets
+    the primary costs: its search is deterministic anyway, never proves anything, and guided
+    local search measured no better on the tie-broken ones. The diagonal is zero: neither
+    model uses it, and it must not set the scale.
     """
+    n = matrix.shape[0]
     off_diagonal = matrix.copy()
     np.fill_diagonal(off_diagonal, 0.0)
     largest = off_diagonal.max()
     scale = COST_SCALE_TARGET / largest if largest > 0 else 1.0
-    return np.rint(off_diagonal * scale).astype(np.int64)
+    costs = np.rint(off_diagonal * scale).astype(np.int64)
+    if tie_break:
+        ties = tie_range(n)
+        costs = costs * (n * ties) + np.random.default_rng(TIE_SEED).integers(0, ties, (n, n), dtype=np.int64)
+        np.fill_diagonal(costs, 0)
+    return costs
+
+
+def _better(
+    matrix: np.ndarray, closed: bool, first: tuple[list[int], str, bool], second: tuple[list[int], str, bool]
+) -> tuple[list[int], str, bool]:
+    """Combine two searches of one instance, (order, status, proven) each: a proof wins, else
+    the shorter order (the first on a tie); the status is ``"time_limit"`` if the clock cut
+    either search short, so a result the clock touched is never reported as reproducible."""
+    if second[2]:
+        return second
+    if not first[0] or not second[0]:
+        best = first if first[0] else second
+    else:
+        best = second if tour_length(matrix, second[0], closed) < tour_length(matrix, first[0], closed) else first
+    if not best[0]:
+        return [], "no_solution", False
+    clock = "time_limit" in (first[1], second[1])
+    return best[0], ("time_limit" if clock else "feasible"), False
 
 
 def _enumerate(matrix: np.ndarray, start: int, closed: bool) -> list[int]:
@@ -264,8 +385,16 @@ def _nearest_neighbour(costs: np.ndarray, start: int) -> list[int]:
     return order
 
 
-def _solve_exact(costs: np.ndarray, start: int, closed: bool, time_limit_s: float) -> tuple[list[int], str, bool]:
-    """CP-SAT circuit model over boolean arc literals; (order, status, proven_optimal)."""
+def _solve_exact(
+    costs: np.ndarray,
+    start: int,
+    closed: bool,
+    deterministic_time: float,
+    time_limit_s: float,
+    hint: list[int] | None = None,
+) -> tuple[list[int], str, bool]:
+    """CP-SAT circuit model over boolean arc literals, started from ``hint`` (an order; default
+    the nearest-neighbour order); (order, status, proven). Never worse than the hint."""
     from ortools.sat.python import cp_model
 
     n = costs.shape[0]
@@ -284,33 +413,41 @@ def _solve_exact(costs: np.ndarray, start: int, closed: bool, time_limit_s: floa
     model.add_circuit(circuit)
     model.minimize(sum(int(costs[i, j]) * lit for (i, j), lit in arcs.items()))
 
-    # A greedy order as a complete hint gives CP-SAT a first solution at once.
-    greedy = _nearest_neighbour(costs, start)
-    hinted = set(zip(greedy, greedy[1:] + ([greedy[0]] if closed else [])))
+    # A complete hint gives CP-SAT a first solution at once.
+    first = list(hint) if hint is not None else _nearest_neighbour(costs, start)
+    hinted = set(zip(first, first[1:] + ([first[0]] if closed else [])))
     for (i, j), lit in arcs.items():
         model.add_hint(lit, (i, j) in hinted)
     for i, lit in ends.items():
-        model.add_hint(lit, i == greedy[-1])
+        model.add_hint(lit, i == first[-1])
 
     solver = cp_model.CpSolver()
+    solver.parameters.num_workers = CP_SAT_WORKERS
+    solver.parameters.random_seed = CP_SAT_SEED
+    solver.parameters.linearization_level = CP_SAT_LINEARIZATION_LEVEL
+    solver.parameters.max_deterministic_time = deterministic_time
     solver.parameters.max_time_in_seconds = time_limit_s
     solver.parameters.log_search_progress = False
-    solver.parameters.num_workers = CP_SAT_WORKERS
     status = solver.solve(model)
     if status == cp_model.MODEL_INVALID:
         raise RuntimeError(f"CP-SAT rejected the TSP model: {model.validate()}")
+    # the clock stopped the search if it ended before its deterministic budget without a proof
+    clock = status != cp_model.OPTIMAL and solver.deterministic_time < deterministic_time
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-        return [], "no_solution", False
+        # a budget too small for CP-SAT to take up even the hint: the hint is still an order
+        return first, ("time_limit" if clock else "feasible"), False
 
     successor = {i: j for (i, j), lit in arcs.items() if solver.boolean_value(lit)}
     order = [start]
     while len(order) < n:
         order.append(successor[order[-1]])
     proven = status == cp_model.OPTIMAL
-    return order, ("optimal" if proven else "feasible"), proven
+    return order, ("optimal" if proven else "time_limit" if clock else "feasible"), proven
 
 
-def _solve_routing(costs: np.ndarray, start: int, closed: bool, time_limit_s: float) -> tuple[list[int], str, bool]:
+def _solve_routing(
+    costs: np.ndarray, start: int, closed: bool, solution_limit: int, time_limit_s: float
+) -> tuple[list[int], str, bool]:
     """OR-Tools routing, PATH_CHEAPEST_ARC + guided local search; (order, status, False)."""
     from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
@@ -332,9 +469,15 @@ def _solve_routing(costs: np.ndarray, start: int, closed: bool, time_limit_s: fl
     params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
     params.guided_local_search_lambda_coefficient = GLS_LAMBDA
     params.use_multi_armed_bandit_concatenate_operators = True
-    # Guided local search never stops by itself: the time limit is its only exit.
-    params.time_limit.FromMilliseconds(max(1, round(time_limit_s * 1000)))
+    # Guided local search never stops by itself: the solution count is its deterministic
+    # exit, the clock only a safety net. The large-neighbourhood operators have a clock of
+    # their own (100 ms by default): give them the safety net too, so load cannot cut one short.
+    params.solution_limit = solution_limit
+    milliseconds = max(1, round(time_limit_s * 1000))
+    params.time_limit.FromMilliseconds(milliseconds)
+    params.lns_time_limit.FromMilliseconds(milliseconds)
     solution = routing.SolveWithParameters(params)
+    solutions = routing.solver().Solutions()
     if solution is None:
         return [], "no_solution", False
 
@@ -342,4 +485,4 @@ def _solve_routing(costs: np.ndarray, start: int, closed: bool, time_limit_s: fl
     while not routing.IsEnd(index):
         order.append(manager.IndexToNode(index))
         index = solution.Value(routing.NextVar(index))
-    return order, "feasible", False
+    return order, ("time_limit" if solutions < solution_limit else "feasible"), False

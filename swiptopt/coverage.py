@@ -37,9 +37,14 @@ def cone_mask(
     """
     auv = np.asarray(auv_positions_m, dtype=float).reshape(-1, 3)[:, None, :]
     nodes = np.asarray(node_positions_m, dtype=float).reshape(-1, 3)[None, :, :]
-    rel = nodes - auv
-    dz = rel[..., 2]
-    horizontal = np.hypot(rel[..., 0], rel[..., 1])
+    return _in_cone(nodes - auv, half_angle_deg, range_m)
+
+
+def _in_cone(rel_m: np.ndarray, half_angle_deg: float, range_m: float) -> np.ndarray:
+    """The cone test on node-minus-AUV vectors (..., 3): one elementwise formula for every
+    caller, so a pair gets the same answer however the pairs are batched."""
+    dz = rel_m[..., 2]
+    horizontal = np.hypot(rel_m[..., 0], rel_m[..., 1])
     slant = np.sqrt(horizontal**2 + dz**2)
     return (dz > 0) & (horizontal <= dz * math.tan(math.radians(half_angle_deg))) & (slant <= range_m)
 
@@ -51,14 +56,141 @@ def slant_distances_m(auv_positions_m: ArrayLike, node_positions_m: ArrayLike) -
     return np.linalg.norm(nodes[None, :, :] - auv[:, None, :], axis=-1)
 
 
+#: Position-node pairs that :func:`covered_pairs` tests at once: its working memory is a few
+#: arrays of this many elements (tens of MB), whatever the number of positions and nodes.
+PAIRS_PER_BLOCK = 1 << 20
+
+
+@dataclass(frozen=True, eq=False)
+class CoveredPairs:
+    """The covered (position, node) pairs, in row-major order (positions ascending, then nodes)."""
+
+    rows: np.ndarray
+    """(nnz,) int64 index of the AUV position."""
+    nodes: np.ndarray
+    """(nnz,) int64 index of the node."""
+    distance_m: np.ndarray
+    """(nnz,) slant distance of the pair, m."""
+
+
+def covered_pairs(
+    scenario: Scenario,
+    auv_positions_m: ArrayLike,
+    node_positions_m: ArrayLike | None = None,
+    *,
+    pairs_per_block: int = PAIRS_PER_BLOCK,
+) -> CoveredPairs:
+    """Coverage by cone, range and SNR threshold as a list of covered pairs (nodes default:
+    the layout), for positions (P, 3) and nodes (N, 3).
+
+    The same test as :func:`covered_nodes`, pair for pair, but run over blocks of about
+    ``pairs_per_block`` pairs: the cone test on the block, then the link budget only on the
+    pairs inside the cone. Memory grows with the covered pairs, not with P x N.
+    """
+    auv = np.asarray(auv_positions_m, dtype=float).reshape(-1, 3)
+    nodes = np.asarray(scenario.layout.positions_m if node_positions_m is None else node_positions_m, dtype=float)
+    nodes = nodes.reshape(-1, 3)
+    block = max(1, int(pairs_per_block) // max(1, nodes.shape[0]))
+    rows, cols, dist = [], [], []
+    for lo in range(0, auv.shape[0], block):
+        inside = cone_mask(auv[lo : lo + block], nodes, scenario.cone_half_angle_deg, scenario.cone_range_m)
+        r, c = np.nonzero(inside)
+        # the same arithmetic as slant_distances_m, on the pairs in the cone only
+        d = np.linalg.norm(nodes[c] - auv[lo + r], axis=-1)
+        ok = link_budget(scenario, d).in_service
+        rows.append(r[ok] + lo)
+        cols.append(c[ok])
+        dist.append(d[ok])
+    if not rows:
+        return CoveredPairs(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    return CoveredPairs(
+        np.concatenate(rows).astype(np.int64), np.concatenate(cols).astype(np.int64), np.concatenate(dist)
+    )
+
+
 def covered_nodes(
     scenario: Scenario, auv_positions_m: ArrayLike, node_positions_m: ArrayLike | None = None
 ) -> np.ndarray:
-    """Coverage by cone, range and SNR threshold, (P, N) bool (nodes default: the layout)."""
-    nodes = scenario.layout.positions_m if node_positions_m is None else node_positions_m
-    geometric = cone_mask(auv_positions_m, nodes, scenario.cone_half_angle_deg, scenario.cone_range_m)
-    snr_ok = link_budget(scenario, slant_distances_m(auv_positions_m, nodes)).in_service
-    return geometric & snr_ok
+    """Coverage by cone, range and SNR threshold, (P, N) bool (nodes default: the layout).
+
+    Computed by :func:`covered_pairs`, so only the bool result is P x N.
+    """
+    nodes = np.asarray(scenario.layout.positions_m if node_positions_m is None else node_positions_m, dtype=float)
+    auv = np.asarray(auv_positions_m, dtype=float).reshape(-1, 3)
+    pairs = covered_pairs(scenario, auv, nodes)
+    out = np.zeros((auv.shape[0], nodes.reshape(-1, 3).shape[0]), dtype=bool)
+    out[pairs.rows, pairs.nodes] = True
+    return out
+
+
+def cell_coverage(scenario: Scenario, *, pairs_per_block: int = PAIRS_PER_BLOCK) -> CoveredPairs:
+    """The covered (cell, node) pairs from every free cell centre of the grid (rows are flat
+    cell indices), in row-major order: :func:`covered_pairs` over the cell centres, without
+    blocked cells, found without testing every cell against every node.
+
+    For each node and each layer of cells above it, only the cells inside the square that
+    bounds the cone's cross-section there (widened by a hair for rounding) are candidates,
+    about 1.3 times the pairs the cone holds; each candidate then gets the very test of
+    :func:`covered_pairs` (the cone formula, then the link budget), so the pairs are the
+    same. Nodes are taken in groups of about ``pairs_per_block`` candidates, so memory
+    grows with the covered pairs, not with cells x nodes.
+    """
+    c = scenario.cell_size_m
+    nx, ny, nz = scenario.grid_shape
+    nodes = np.asarray(scenario.layout.positions_m, dtype=float)
+    centres = scenario.cell_centers_m
+    blocked = scenario.blocked_cells
+    tan = math.tan(math.radians(scenario.cone_half_angle_deg))
+    reach_m = scenario.cone_range_m
+    slack = 1.0 + 1e-9
+
+    layer_z = (np.arange(nz) + 0.5) * c  # as in cell_centers_m
+    dz = nodes[:, 2, None] - layer_z[None, :]  # (N, nz)
+    with np.errstate(invalid="ignore"):
+        radius = np.minimum(dz * tan, np.sqrt(np.maximum(reach_m**2 - dz**2, 0.0))) * slack + 1e-9 * c
+    usable = (dz > 0) & (dz <= reach_m * slack)
+
+    def cell_range(coord: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.clip(np.ceil((coord[:, None] - radius) / c - 0.5), 0, n_cells - 1).astype(np.int64)
+        hi = np.clip(np.floor((coord[:, None] + radius) / c - 0.5), 0, n_cells - 1).astype(np.int64)
+        return lo, np.where(usable, hi - lo + 1, 0).clip(min=0)
+
+    i_lo, i_n = cell_range(nodes[:, 0], nx)
+    j_lo, j_n = cell_range(nodes[:, 1], ny)
+    count = i_n * j_n  # (N, nz) candidate cells per node and layer
+    per_node = count.sum(axis=1)
+
+    rows, cols, dist = [], [], []
+    first = 0
+    while first < nodes.shape[0]:
+        # the next group of nodes with about pairs_per_block candidates (at least one node)
+        last = first + max(1, int(np.searchsorted(np.cumsum(per_node[first:]), pairs_per_block, side="right")))
+        node_of, layer_of = np.nonzero(count[first:last])
+        node_of += first
+        n_cand = count[node_of, layer_of]
+        owner = np.repeat(np.arange(n_cand.size), n_cand)
+        t = np.arange(int(n_cand.sum())) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
+        width = j_n[node_of, layer_of][owner]
+        i = i_lo[node_of, layer_of][owner] + t // width
+        j = j_lo[node_of, layer_of][owner] + t % width
+        cell = (i * ny + j) * nz + layer_of[owner]
+        node = node_of[owner]
+        free = ~blocked[cell]
+        cell, node = cell[free], node[free]
+        rel = nodes[node] - centres[cell]
+        inside = _in_cone(rel, scenario.cone_half_angle_deg, reach_m)
+        cell, node = cell[inside], node[inside]
+        d = np.linalg.norm(rel[inside], axis=-1)  # as slant_distances_m
+        ok = link_budget(scenario, d).in_service
+        rows.append(cell[ok])
+        cols.append(node[ok])
+        dist.append(d[ok])
+        first = last
+    if not rows:
+        return CoveredPairs(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    cell, node, d = np.concatenate(rows), np.concatenate(cols), np.concatenate(dist)
+    order = np.lexsort((node, cell))
+    return CoveredPairs(cell[order].astype(np.int64), node[order].astype(np.int64), d[order])
 
 
 def cone_volume_m3(depth_below_m: float, half_angle_deg: float, range_m: float) -> float:

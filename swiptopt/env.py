@@ -112,21 +112,28 @@ class AuvSwiptEnv(gym.Env):
         self.backend = backend
         if backend == "compiled":
             self._step_tabular = K.compiled("step_tabular")
+            self._step_vector = K.compiled("step_vector")
+            self._observe_vector = K.compiled("vector_observation")
         else:
             self._step_tabular = K.step_tabular
+            self._step_vector = K.step_vector
+            self._observe_vector = K.vector_observation
 
         n, cells = scenario.n_nodes, scenario.n_cells
         self.action_space = spaces.Discrete(K.N_ACTIONS)
         if observation == "tabular":
             self.observation_space = spaces.Discrete(cells * (K.TABULAR_COUNT_CAP + 1))
         else:
-            self.observation_space = spaces.Box(-1.0, 1.0, (4 + 6 * n,), dtype=np.float32)
+            self.observation_space = spaces.Box(-1.0, 1.0, (4 + K.VECTOR_NODE_FEATURES * n,), dtype=np.float32)
             extent = scenario.extent_m
-            self._cells_norm = scenario.cell_centers_m / extent
-            self._nodes_norm = scenario.layout.positions_m / extent
-            self._covered = np.zeros((cells, n), dtype=bool)
-            for c in range(cells):
-                self._covered[c, self.tables.covered(c)] = True
+            self._obs = np.empty(self.observation_space.shape, dtype=np.float32)
+            # what the kernel's vector_observation reads besides the state, and its output
+            self._obs_args = (
+                self.tables.data0,
+                np.ascontiguousarray(scenario.cell_centers_m / extent),
+                np.ascontiguousarray(scenario.layout.positions_m / extent),
+                self._obs,
+            )
         self._uniforms, self._normals = K.noise_buffers(self.tables)
         self._vector = observation == "vector"
         self._done = True  # until the first reset
@@ -174,30 +181,28 @@ class AuvSwiptEnv(gym.Env):
             raise ValueError(f"action must be an integer in [0, {K.N_ACTIONS - 1}], got {action!r}")
         if self._refill:
             K.refill_noise(self.np_random, self.tables, self._uniforms, self._normals, self.state.where)
-        code, obs, self._refill = self._step_tabular(a, self._uniforms, self._normals, *self._args)
+        if self._vector:
+            code, self._refill = self._step_vector(a, self._uniforms, self._normals, *self._args, *self._obs_args)
+            obs = self._obs.copy()  # a fresh array per step: callers may keep observations
+        else:
+            code, obs, self._refill = self._step_tabular(a, self._uniforms, self._normals, *self._args)
         throughput, harvest, movement = self.state.parts.tolist()
         self.path.append(self.state.where[0])
         info: dict[str, Any] = {"reward_parts": {"throughput": throughput, "harvest": harvest, "movement": movement}}
         if code:
             self._done = True
             info["episode"] = episode_metrics(self.tables, self.state)
-        if self._vector:
-            obs = self._vector_observation()
         return obs, throughput + harvest + movement, code == K.TERMINATED, code == K.TRUNCATED, info
 
     def _vector_observation(self) -> np.ndarray:
+        """The vector observation of the current state (the kernel's, compiled or not)."""
         s, t = self.state, self.tables
-        cell = s.cell
-        out = np.empty(self.observation_space.shape, dtype=np.float32)
-        n = t.n_nodes
-        out[:3] = self._cells_norm[cell]
-        out[3] = 1.0 - s.t / t.params[K.P_STEPS]
-        per_node = out[4:].reshape(n, 6)
-        per_node[:, :3] = self._nodes_norm - self._cells_norm[cell]
-        per_node[:, 3] = s.data_left / t.data0
-        per_node[:, 4] = s.energy / t.capacity
-        per_node[:, 5] = self._covered[cell]
-        return out
+        data0, cells_norm, nodes_norm, out = self._obs_args
+        self._observe_vector(
+            s.where[K.W_CELL], s.where[K.W_T], t.cov_ptr, t.cov_node, s.data_left, s.energy, data0,
+            t.capacity, t.params, cells_norm, nodes_norm, out,
+        )
+        return out.copy()
 
     # ----------------------------------------------------------------- rendering
 

@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from swiptopt import acoustics, auv, harvesting
-from swiptopt.coverage import covered_nodes, slant_distances_m
+from swiptopt.coverage import cell_coverage
 from swiptopt.jit import compile_family, numba_available  # noqa: F401 (re-exported)
 from swiptopt.link import auv_power, link_budget, reward_references
 from swiptopt.scenario import Scenario
@@ -134,12 +134,12 @@ def build_tables(scenario: Scenario) -> Tables:
     prop_w[:, HOVER] += scenario.station_keeping_power_w
     propulsion_j = prop_w * dt
 
-    # Coverage: cone, range and mean SNR threshold from each cell centre.
+    # Coverage: cone, range and mean SNR threshold from each free cell's centre, as the
+    # covered pairs only (memory grows with them, not with cells x nodes).
     layout = scenario.layout
-    centres = scenario.cell_centers_m
-    covered = covered_nodes(scenario, centres, layout.positions_m) & ~scenario.blocked_cells[:, None]
-    rows, nodes = np.nonzero(covered)
-    budget = link_budget(scenario, slant_distances_m(centres, layout.positions_m)[rows, nodes])
+    pairs = cell_coverage(scenario)
+    rows, nodes = pairs.rows, pairs.nodes
+    budget = link_budget(scenario, pairs.distance_m)
     cov_ptr = np.zeros(n_cells + 1, dtype=np.int64)
     np.cumsum(np.bincount(rows, minlength=n_cells), out=cov_ptr[1:])
 
@@ -312,6 +312,12 @@ def is_served(data_left, energy, capacity, gamma, i):  # type: ignore[no-untyped
     return gamma >= 1.0 or energy[i] >= capacity[i] * (1.0 - 1e-12)
 
 
+def served_mask(data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
+    """:func:`is_served` for every node at once, (n_nodes,) bool (numpy; for metrics and
+    planners, which look at all nodes; a test holds it to :func:`is_served`)."""
+    return ~(data_left > 0.0) & ((gamma >= 1.0) | (energy >= capacity * (1.0 - 1e-12)))
+
+
 def unserved_covered(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
     """Number of nodes covered from ``cell`` that still need data or energy."""
     count = 0
@@ -338,6 +344,36 @@ def tabular_observation(cell, cov_ptr, cov_node, data_left, energy, capacity, ga
     return cell * (TABULAR_COUNT_CAP + 1) + min(count, TABULAR_COUNT_CAP)
 
 
+#: Features per node in the vector observation: position relative to the AUV (x, y, depth),
+#: data left, state of charge, covered now.
+VECTOR_NODE_FEATURES = 6
+
+
+def vector_observation(  # type: ignore[no-untyped-def]
+    cell, t, cov_ptr, cov_node, data_left, energy, data0, capacity, params, cells_norm, nodes_norm, out
+):
+    """SPEC 4 vector observation, written into ``out`` ((4 + 6 n_nodes,) float32).
+
+    The AUV's cell centre over the volume's extent (``cells_norm`` (n_cells, 3)), the
+    fraction of the episode left, then per node: its position minus the AUV's over the
+    extent (``nodes_norm`` (n_nodes, 3)), the fraction of its data left, its state of charge
+    and 1.0 if covered from ``cell``. Whole-array ufuncs writing straight into ``out`` (no
+    temporaries), so that numpy runs it fast in Python and numba compiles it unchanged.
+    """
+    n = data_left.shape[0]
+    for axis in range(3):
+        out[axis] = cells_norm[cell, axis]
+    out[3] = 1.0 - t / params[P_STEPS]
+    per_node = out[4:].reshape((n, VECTOR_NODE_FEATURES))
+    for axis in range(3):
+        np.subtract(nodes_norm[:, axis], cells_norm[cell, axis], per_node[:, axis])
+    np.divide(data_left, data0, per_node[:, 3])
+    np.divide(energy, capacity, per_node[:, 4])
+    per_node[:, 5] = 0.0
+    for p in range(cov_ptr[cell], cov_ptr[cell + 1]):
+        per_node[cov_node[p], 5] = 1.0
+
+
 def step_tabular(  # type: ignore[no-untyped-def]
     action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
     capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
@@ -353,6 +389,27 @@ def step_tabular(  # type: ignore[no-untyped-def]
         where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS])
     )
     return code, obs, refill
+
+
+def step_vector(  # type: ignore[no-untyped-def]
+    action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
+    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+    data0, cells_norm, nodes_norm, out,
+):
+    """:func:`step`, then the vector observation into ``out`` (:func:`vector_observation`);
+    returns (code, refill) as :func:`step_tabular` does, in one compiled call."""
+    code = step(
+        action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
+        capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+    )
+    vector_observation(
+        where[W_CELL], where[W_T], cov_ptr, cov_node, data_left, energy, data0, capacity, params,
+        cells_norm, nodes_norm, out,
+    )
+    refill = needs_refill(
+        where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS])
+    )
+    return code, refill
 
 
 def step(  # type: ignore[no-untyped-def]
@@ -511,6 +568,8 @@ _KERNEL_FUNCTIONS = (
     "reset_state",
     "step",
     "step_tabular",
+    "vector_observation",
+    "step_vector",
 )
 
 # The physics the step uses, by plain name: the compiled kernel rebinds these two names to

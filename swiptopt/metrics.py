@@ -1,4 +1,8 @@
-"""Per-episode metrics (SPEC 4), computed from the kernel's state at the end of an episode."""
+"""Per-episode metrics (SPEC 4), computed from the kernel's state at the end of an episode.
+
+The environment computes them once, on an episode's last step; every part is vectorised
+over the nodes (a Python loop over 1000 nodes here once cost more per episode than the
+episode's 50 steps)."""
 
 from __future__ import annotations
 
@@ -54,9 +58,7 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
     auv_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J] + acc[K.A_PROJECTOR_J])
     mobility_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
     bits = float(acc[K.A_BITS])
-    served = sum(
-        bool(K.is_served(state.data_left, state.energy, tables.capacity, gamma, i)) for i in range(tables.n_nodes)
-    )
+    served = int(np.count_nonzero(K.served_mask(state.data_left, state.energy, tables.capacity, gamma)))
     steps_data = acc[K.A_STEPS_DATA_TARGET]
     steps_energy = acc[K.A_STEPS_ENERGY_TARGET]
     return {

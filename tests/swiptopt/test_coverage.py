@@ -83,3 +83,60 @@ def test_snr_threshold_shrinks_coverage():
     strict = cov.covered_nodes(s.replace(snr_threshold_db=96.0), positions)
     assert strict.sum() < base.sum()
     assert not np.any(strict & ~base)  # a stricter threshold never adds a node
+
+
+def dense_coverage(scenario):
+    """Every cell against every node at once, as the tables were first built: the cone
+    mask and the link budget on the full (cells, nodes) matrices, blocked cells removed."""
+    from swiptopt.link import link_budget
+
+    centres, nodes = scenario.cell_centers_m, scenario.layout.positions_m
+    distance = cov.slant_distances_m(centres, nodes)
+    covered = cov.cone_mask(centres, nodes, scenario.cone_half_angle_deg, scenario.cone_range_m)
+    covered &= link_budget(scenario, distance).in_service & ~scenario.blocked_cells[:, None]
+    rows, cols = np.nonzero(covered)
+    return rows, cols, distance[rows, cols]
+
+
+COVERAGE_CASES = [
+    ("paper", {"n_nodes": 40}),
+    ("paper", {"cell_size_m": 5.0, "n_nodes": 120}),
+    ("harbour", {"n_nodes": 60}),  # obstacles and a seabed: blocked cells
+    ("tiny", {}),
+    ("paper", {"cone_half_angle_deg": 75.0, "n_nodes": 50}),  # wide cone, clipped by the walls
+    ("paper", {"cone_range_m": 22.0, "n_nodes": 50}),  # range-limited
+    ("paper", {"electrical_power_w": 0.5, "n_nodes": 50}),  # SNR-limited inside the cone
+]
+
+
+@pytest.mark.parametrize("preset, overrides", COVERAGE_CASES)
+@pytest.mark.parametrize("pairs_per_block", [1, 997, cov.PAIRS_PER_BLOCK])
+def test_cell_coverage_and_covered_pairs_are_the_dense_test_pair_for_pair(preset, overrides, pairs_per_block):
+    scenario = Scenario.preset(preset, **overrides)
+    rows, cols, distance = dense_coverage(scenario)
+    assert rows.size > 0
+    fast = cov.cell_coverage(scenario, pairs_per_block=pairs_per_block)
+    np.testing.assert_array_equal(fast.rows, rows)
+    np.testing.assert_array_equal(fast.nodes, cols)
+    np.testing.assert_array_equal(fast.distance_m, distance)  # bit for bit
+    blocks = cov.covered_pairs(scenario, scenario.cell_centers_m, pairs_per_block=pairs_per_block)
+    free = ~scenario.blocked_cells[blocks.rows]
+    np.testing.assert_array_equal(blocks.rows[free], rows)
+    np.testing.assert_array_equal(blocks.nodes[free], cols)
+    np.testing.assert_array_equal(blocks.distance_m[free], distance)
+    dense = cov.covered_nodes(scenario, scenario.cell_centers_m)
+    assert dense.sum() == blocks.rows.size and dense[blocks.rows, blocks.nodes].all()
+
+
+def test_kernel_tables_hold_the_covered_pairs_and_their_link():
+    from swiptopt import kernel as K
+    from swiptopt.link import link_budget
+
+    scenario = Scenario.preset("harbour", n_nodes=60)
+    t = K.build_tables(scenario)
+    rows, cols, distance = dense_coverage(scenario)
+    np.testing.assert_array_equal(np.repeat(np.arange(t.n_cells), np.diff(t.cov_ptr)), rows)
+    np.testing.assert_array_equal(t.cov_node, cols)
+    budget = link_budget(scenario, distance)
+    np.testing.assert_array_equal(t.cov_pav, budget.available_power_w)
+    np.testing.assert_array_equal(t.cov_snr, 10.0 ** (budget.snr_db / 10.0))

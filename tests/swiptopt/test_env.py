@@ -239,3 +239,44 @@ def test_bad_arguments():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action"):
         env.step(7)
+
+
+def reference_vector_observation(env):
+    """SPEC 4's vector observation written out directly from the scenario (the test's own)."""
+    s, t, sc = env.state, env.tables, env.scenario
+    extent = sc.extent_m
+    here = sc.cell_centers_m[s.cell] / extent
+    covered = np.zeros(t.n_nodes)
+    covered[t.covered(s.cell)] = 1.0
+    per_node = np.column_stack([sc.layout.positions_m / extent - here, s.data_left / t.data0, s.energy / t.capacity, covered])
+    return np.concatenate([here, [1.0 - s.t / sc.episode_steps], per_node.ravel()]).astype(np.float32)
+
+
+@pytest.mark.parametrize("preset, overrides", CASES[:3])
+def test_vector_observation_is_the_same_compiled_python_and_written_out(preset, overrides):
+    actions = np.random.default_rng(7).integers(0, 7, 120)
+    envs = [AuvSwiptEnv(preset=preset, observation="vector", backend=b, **overrides) for b in ("compiled", "python")]
+    observations = [[e.reset(seed=3)[0]] for e in envs]
+    for a in actions:
+        for env, seen in zip(envs, observations):
+            obs, _, term, trunc, _ = env.step(a)
+            np.testing.assert_array_equal(obs, reference_vector_observation(env))
+            seen.append(obs)
+            if term or trunc:
+                seen.append(env.reset()[0])
+    for first, second in zip(*observations):
+        assert first.dtype == np.float32 and first.tobytes() == second.tobytes()
+    # every step hands out its own array: keeping one does not see the next
+    assert not any(np.shares_memory(a, b) for a, b in zip(observations[0], observations[0][1:]))
+
+
+def test_served_mask_is_is_served_for_every_node():
+    rng = np.random.default_rng(0)
+    n = 4000
+    capacity = rng.uniform(0.5, 2.0, n)
+    data_left = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(-1.0, 1e5, n))
+    data_left[:4] = [-0.0, np.nan, 1e-300, -1e-300]
+    energy = capacity * rng.choice([0.0, 1.0 - 1e-12, 1.0 - 2e-12, 1.0, 1.5, np.nan], n)
+    for gamma in (0.0, 0.5, 1.0):
+        expected = [bool(K.is_served(data_left, energy, capacity, gamma, i)) for i in range(n)]
+        assert K.served_mask(data_left, energy, capacity, gamma).tolist() == expected
