@@ -124,7 +124,7 @@ def test_schema_agrees_with_what_the_algorithms_accept():
 
 
 def test_values_are_normalised_so_equal_settings_give_equal_tasks():
-    a = experiment(algorithms={"kmeans_tsp": {"tsp_time_limit_s": 1}})
+    a = experiment(algorithms={"kmeans_tsp": {"tsp_time_limit_s": 60}})  # the default, 60.0, as an int
     b = experiment(algorithms={"kmeans_tsp": {}})
     assert [t.key for t in a.tasks()] == [t.key for t in b.tasks()]
     assert resolve_settings("greedy", {"max_dwell_steps": 4.0})["max_dwell_steps"] == 4
