@@ -31,12 +31,11 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from collections import Counter
 
 from swiptopt.benchmark.algorithms import labels
 from swiptopt.evaluation import Summary
@@ -154,7 +153,8 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
             gaps, optimum_gaps, used = [], [], []
             for seed, r in by_seed.items():
                 ret = _task_mean(r["records"], "return")
-                candidates = [references[seed // SEEDS_PER_LAYOUT]] if seed // SEEDS_PER_LAYOUT in references else []
+                layout = seed // SEEDS_PER_LAYOUT
+                candidates = [references[layout]] if layout in references else []
                 if r["extra"].get("upper_bound_return") is not None:
                     candidates.append((float(r["extra"]["upper_bound_return"]), UPPER))
                 bound, label = min(candidates, key=lambda c: c[0]) if candidates else (None, "")

@@ -8,7 +8,7 @@ import pytest
 
 from planners.optimal import BUDGETS
 from planners.policies import KMeansTspPlanner
-from planners.reward_tour import RewardKMeansTspPlanner
+from planners.reward_tour import DWELLS, MAX_EXACT_STOPS, SELECTIONS, RewardKMeansTspPlanner
 from swiptopt import Scenario, evaluate
 from swiptopt.benchmark import tables
 from swiptopt.benchmark.algorithms import ALGORITHMS, build_policy, quick_settings
@@ -42,6 +42,9 @@ def test_registry_kmeans_tsp_is_the_improved_planner_and_keeps_the_old_one_under
     # the planner whose 85 % of the MILP's best tests/planners/test_reward_tour.py checks,
     # with its own defaults and the task's seed
     assert type(new) is RewardKMeansTspPlanner and vars(new) == vars(RewardKMeansTspPlanner(seed=3))
+    schema = ALGORITHMS["kmeans_tsp"].settings
+    assert (schema["selection"].choices, schema["dwell"].choices) == (SELECTIONS, DWELLS)
+    assert schema["k_max"].default == MAX_EXACT_STOPS
     assert (new.selection, new.dwell, new.linger_steps) == ("reward", "steps", 0)
     old = build_policy("kmeans_tsp", env, {"selection": "coverage", "dwell": "convex", "linger_steps": 2}, seed=0)
     before = KMeansTspPlanner(seed=0)
