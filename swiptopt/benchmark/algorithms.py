@@ -11,13 +11,20 @@ schema (one function for every algorithm) and :func:`check_settings_for` checks 
 that depend on the scenario, so an experiment refuses a bad value before any task runs,
 naming the experiment's key (``algorithms.kmeans_tsp.tsp_time_limit_s``), never the
 parameter of the function it ends up in.
+
+To add an algorithm, add an :class:`Algorithm` to :data:`ALGORITHMS`: its settings (each
+with its value under ``--quick``, when a smoke test should shrink it), a ``build`` function
+and, when a task should record more than its episodes (a solver's bound and status), a
+``record`` function. The validation tests, ``--quick`` and the runner pick it up from there.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from planners.optimal import BUDGETS
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size, limits, training_log_note
 from swiptopt.validation import Spec, check_keys, check_value
@@ -28,13 +35,16 @@ class Setting(Spec):
     """One setting of an algorithm: its default and what it may hold.
 
     ``limit`` names a :class:`swiptopt.limits.Limits` field that is the upper end;
-    ``hi_of`` gives an upper end that depends on the scenario (``hi_doc`` says what it is).
+    ``hi_of`` gives an upper end that depends on the scenario (``hi_doc`` says what it is);
+    ``quick`` is the value under ``--quick`` (a smoke test): a number caps the setting, any
+    other value replaces it, ``None`` leaves it as it is.
     """
 
     default: Any = None
     limit: str = ""
     hi_of: Callable[[Any], int] | None = None
     hi_doc: str = ""
+    quick: Any = None
 
     def upper(self) -> float | None:
         """The upper end in force (the limit's current value where there is one)."""
@@ -43,13 +53,19 @@ class Setting(Spec):
 
 @dataclass(frozen=True)
 class Algorithm:
-    """A named algorithm: its family, its settings and how to build it."""
+    """A named algorithm: its family, its settings, how to build it and what its tasks record.
+
+    ``build(env, settings, seed)`` returns the policy (trained, for RL); ``record(policy,
+    env)``, called after the evaluation, returns what the task stores beside its episodes
+    (:func:`task_extra`).
+    """
 
     name: str
     label: str
     family: str
     settings: dict[str, Setting] = field(default_factory=dict)
     build: Callable[[Any, dict[str, Any], int], Any] | None = None
+    record: Callable[[Any, Any], dict[str, Any]] | None = None
 
     @property
     def defaults(self) -> dict[str, Any]:
@@ -72,22 +88,68 @@ def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int], Any]:
     return build
 
 
-def _planner(cls_name: str) -> Callable[[Any, dict[str, Any], int], Any]:
-    def build(env: Any, settings: dict[str, Any], seed: int) -> Any:
-        import planners.policies as policies
+def _planner(cls_name: str, *, seeded: bool = False) -> Callable[[Any, dict[str, Any], int], Any]:
+    """Build ``planners.<cls_name>`` from the settings (and the task's seed when ``seeded``)."""
 
-        cls = getattr(policies, cls_name)
-        if cls_name == "KMeansTspPlanner":
-            return cls(seed=seed, **settings)
-        return cls(**settings)
+    def build(env: Any, settings: dict[str, Any], seed: int) -> Any:
+        import planners
+
+        cls = getattr(planners, cls_name)
+        return cls(seed=seed, **settings) if seeded else cls(**settings)
 
     return build
+
+
+def _milp(env: Any, settings: dict[str, Any], seed: int) -> Any:
+    """The MILP's plan as a policy: the named budget, with the overrides that are set. The
+    task's seed is not used: the solve is the same for every seed."""
+    import dataclasses
+
+    from planners.optimal import MilpPlanner
+
+    overrides = {key: settings[key] for key in ("max_nodes", "time_limit_s") if settings[key] is not None}
+    return MilpPlanner(budget=dataclasses.replace(BUDGETS[settings["budget"]], **overrides))
+
+
+#: What the MILP's bound bounds (the tables' "bound" column): every policy's return with a
+#: deterministic channel; with a stochastic one, the expected-rate relaxation of open-loop
+#: walks only (see :mod:`planners.optimal`).
+MILP_BOUND = "milp"
+MILP_EXPECTED_BOUND = "milp (expected)"
+
+
+def _milp_record(policy: Any, env: Any) -> dict[str, Any]:
+    """The MILP's outcome under the keys a solver's task records (the tables read them):
+    ``solver_status`` and ``solver_message``, ``best_return`` (the plan's value in the
+    solver's model), ``bound_return`` with ``bound_label`` (what it bounds), ``solver_gap``,
+    ``lp_bound_return``, ``solver_nodes``, ``solver_exact``, ``solver_time_limit_hit``."""
+    from planners.service import step_model
+
+    result = getattr(policy, "result_", None)
+    if result is None:
+        return {}
+    out = {
+        "solver_status": result.status,
+        "solver_message": result.message,
+        "best_return": result.objective,
+        "bound_return": result.bound,
+        "lp_bound_return": result.lp_bound,
+        "solver_gap": result.gap,
+        "solver_nodes": result.nodes,
+        "solver_exact": result.exact,
+        "solver_time_limit_hit": result.time_limit_hit,
+    }
+    if result.bound is not None and math.isfinite(result.bound):
+        out["bound_label"] = MILP_BOUND if step_model(env.tables).exact else MILP_EXPECTED_BOUND
+    else:
+        out["bound_return"] = None
+    return out
 
 
 _STEPS = 1_000_000  # the longest episode a scenario allows: no step count beyond it means anything
 
 _RL_TRAINING = {
-    "train_episodes": Setting(default=20_000, kind="int", lo=0, limit="max_training_episodes",
+    "train_episodes": Setting(default=20_000, kind="int", lo=0, limit="max_training_episodes", quick=2000,
                               doc="training episodes before the greedy evaluation"),
     "backend": Setting(default="compiled", kind="str", choices=("python", "compiled"),
                        doc="training loop: the compiled kernel or the plain Gymnasium loop"),
@@ -114,19 +176,31 @@ ALGORITHMS: dict[str, Algorithm] = {
             "k-means + TSP",
             "planner",
             {
+                # the defaults are planners.RewardKMeansTspPlanner's; the old behaviour is
+                # selection = "coverage", dwell = "convex", linger_steps = 2
+                "selection": Setting(default="reward", kind="str", choices=("reward", "coverage"),
+                                     doc="hover points: 'reward' (every K up to k_max, each walk scored by the "
+                                         "simulator's reward) or 'coverage' (the old rule: the fewest groups that "
+                                         "fit the cone)"),
+                "dwell": Setting(default="steps", kind="str", choices=("steps", "convex"),
+                                 doc="dwell: 'steps' (whole steps by marginal reward) or 'convex' (the old convex "
+                                     "dwell/split program)"),
                 "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes,
-                             hi_doc="n_nodes", doc="hover groups (default: the fewest that fit the cone)"),
+                             hi_doc="n_nodes", doc="hover groups (default: chosen by the selection rule)"),
+                "k_max": Setting(default=12, kind="int", lo=1, hi=100,
+                                 doc="largest K the reward selection tries"),
                 "tsp_method": Setting(default="auto", kind="str", choices=("auto", "exact", "routing"),
-                                      doc="TSP solver"),
+                                      doc="TSP solver (coverage selection, or tours over 12 stops)"),
                 "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
                                             doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
                 "tour_costs": Setting(default="auto", kind="str", choices=("auto", "euclidean", "grid", "ompl"),
-                                      doc="costs between stops"),
-                "ompl_time_limit_s": Setting(default=0.2, lo=0, lo_open=True, hi=600, unit="s",
+                                      doc="costs between stops (coverage selection, or tours over 12 stops)"),
+                "ompl_time_limit_s": Setting(default=0.2, lo=0, lo_open=True, hi=600, unit="s", quick=0.05,
                                              doc="OMPL time limit per pair of stops"),
-                "linger_steps": _LINGER,
+                "linger_steps": Setting(default=0, kind="int", lo=0, hi=_STEPS,
+                                        doc="extra hover steps while covered nodes hold data (the old planner: 2)"),
             },
-            _planner("KMeansTspPlanner"),
+            _planner("RewardKMeansTspPlanner", seeded=True),
         ),
         Algorithm(
             "lawnmower",
@@ -145,6 +219,23 @@ ALGORITHMS: dict[str, Algorithm] = {
             "greedy", "greedy", "planner",
             {"max_dwell_steps": Setting(default=8, kind="int", lo=1, hi=_STEPS, doc="hover steps before giving up on a node")},
             _planner("GreedyPlanner"),
+        ),
+        Algorithm("rate_greedy", "rate-greedy", "planner", {}, _planner("RateGreedyPlanner")),
+        Algorithm(
+            "milp",
+            "MILP",
+            "planner",
+            {
+                "budget": Setting(default="default", kind="str", choices=tuple(BUDGETS), quick="quick",
+                                  doc="named search budget of planners.optimal.BUDGETS (deterministic limits)"),
+                "max_nodes": Setting(default=None, kind="int", lo=1, hi=10**9, optional=True, quick=1,
+                                     doc="branch-and-bound nodes (default: the budget's)"),
+                "time_limit_s": Setting(default=None, lo=0, lo_open=True, hi=7 * 86_400, optional=True, unit="s",
+                                        doc="wall-clock safety net (default: the budget's); a task that hits it "
+                                            "records so, as its result then depends on the machine's speed"),
+            },
+            _milp,
+            _milp_record,
         ),
     )
 }
@@ -201,6 +292,27 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
             )
 
 
+def quick_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` shrunk for a smoke test (``--quick``): each setting with a ``quick`` value
+    capped at it (numbers) or replaced by it (anything else)."""
+    resolved = resolve_settings(name, settings)
+    out = dict(settings)
+    for key, spec in ALGORITHMS[name].settings.items():
+        value = resolved[key]
+        if spec.quick is None or value is None:
+            continue
+        numeric = spec.kind in ("int", "float")
+        out[key] = min(value, spec.quick) if numeric else spec.quick
+    return out
+
+
+def task_extra(name: str, policy: Any, env: Any) -> dict[str, Any]:
+    """What a task of algorithm ``name`` records beside its episodes, from the evaluated
+    policy (empty for algorithms without a ``record``)."""
+    record = ALGORITHMS[name].record
+    return record(policy, env) if record is not None else {}
+
+
 def build_policy(name: str, env: Any, settings: dict[str, Any], seed: int) -> Any:
     """The trained or planning policy of algorithm ``name`` for ``env``."""
     algorithm = ALGORITHMS[name]
@@ -212,4 +324,16 @@ def labels() -> dict[str, str]:
     return {name: a.label for name, a in ALGORITHMS.items()}
 
 
-__all__ = ["ALGORITHMS", "Algorithm", "Setting", "build_policy", "check_settings_for", "labels", "resolve_settings"]
+__all__ = [
+    "ALGORITHMS",
+    "MILP_BOUND",
+    "MILP_EXPECTED_BOUND",
+    "Algorithm",
+    "Setting",
+    "build_policy",
+    "check_settings_for",
+    "labels",
+    "quick_settings",
+    "resolve_settings",
+    "task_extra",
+]

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from swiptopt.benchmark.algorithms import ALGORITHMS, check_settings_for, resolve_settings
+from swiptopt.benchmark.algorithms import ALGORITHMS, check_settings_for, quick_settings, resolve_settings
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size
 from swiptopt.tomlfile import read_toml
@@ -63,7 +63,6 @@ EVALUATION_OFFSET = 1_000_003
 #: Task seeds of one layout: layout L's tasks have seeds SEEDS_PER_LAYOUT * L + 0, 1, ...
 SEEDS_PER_LAYOUT = 1000
 
-ALL_ALGORITHMS = tuple(ALGORITHMS)
 TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline"}
 FIGURE_KEYS = {"metric", "x", "title", "ylabel", "xlabel"}
 
@@ -241,18 +240,9 @@ class Experiment:
 
     def quick(self) -> Experiment:
         """The same experiment shrunk to a smoke test: 2 layouts, 1 seed, 2 episodes, the
-        first two sweep values, short training and short solver limits."""
-        algorithms = {}
-        for name, settings in self.algorithms.items():
-            s = dict(settings)
-            resolved = resolve_settings(name, s)
-            if resolved.get("train_episodes"):
-                s["train_episodes"] = min(resolved["train_episodes"], 2000)
-            if "ompl_time_limit_s" in resolved:
-                # the TSP's time limit is only a safety net (its search stops on a deterministic
-                # budget): shortening it would make quick results depend on the machine
-                s["ompl_time_limit_s"] = min(resolved["ompl_time_limit_s"], 0.05)
-            algorithms[name] = s
+        first two sweep values, and each algorithm's settings at their ``--quick`` values
+        (short training, short solver limits, the MILP's ``quick`` budget;
+        :func:`~swiptopt.benchmark.algorithms.quick_settings`)."""
         return dataclasses.replace(
             self,
             name=self.name,
@@ -260,7 +250,7 @@ class Experiment:
             seeds=1,
             episodes=min(self.episodes, 2),
             sweep={k: v[:2] for k, v in self.sweep.items()},
-            algorithms=algorithms,
+            algorithms={name: quick_settings(name, settings) for name, settings in self.algorithms.items()},
         )
 
     # ------------------------------------------------------------ expansion
@@ -297,7 +287,10 @@ class Experiment:
 # ------------------------------------------------------------------- built-ins
 
 _PAPER_ALGORITHMS = {"q_learning": {}, "sarsa": {}, "random": {}}
-_ALL = {name: {} for name in ALL_ALGORITHMS}
+#: The tabular agents and every planner but the MILP: cheap enough for every figure's sweep.
+_AGENTS_AND_PLANNERS = {**_PAPER_ALGORITHMS, "kmeans_tsp": {}, "lawnmower": {}, "greedy": {}, "rate_greedy": {}}
+#: The deterministic paper preset: no fading, no link failures (the MILP is then exact).
+_DETERMINISTIC = {"channel": "none", "failure_prob_min": 0.0, "failure_prob_max": 0.0}
 _NODE_SWEEP = {"n_nodes": [10, 20, 30, 40, 50]}
 
 
@@ -326,12 +319,23 @@ def builtin_experiments() -> dict[str, Experiment]:
         for e in (
             _builtin(
                 "compare",
-                "every algorithm on the standard suite: the paper preset, 25 nodes",
+                "every algorithm on the standard suite: the paper preset, 25 nodes (the MILP at its "
+                "'compare' budget)",
                 scenario={**paper, "n_nodes": 25},
-                algorithms=_ALL,
+                algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "compare"}},
                 layouts=6,
                 episodes=10,
                 baseline="random",
+            ),
+            _builtin(
+                "optimum",
+                "every algorithm's gap to the optimum: the deterministic paper preset (no fading, no link "
+                "failures), 25 nodes, 10 layouts, the MILP at its 'default' budget",
+                scenario={**paper, **_DETERMINISTIC, "n_nodes": 25},
+                algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "default"}},
+                layouts=10,
+                episodes=10,
+                baseline="milp",
             ),
             _builtin(
                 "rl-vs-random",
@@ -348,7 +352,7 @@ def builtin_experiments() -> dict[str, Experiment]:
                 "reward (return) against the power-splitting factor, 25 nodes",
                 scenario={**paper, "n_nodes": 25},
                 sweep={"split_ratio": [0.1, 0.3, 0.5, 0.7, 0.9]},
-                algorithms=_ALL,
+                algorithms=_AGENTS_AND_PLANNERS,
                 layouts=20,
                 episodes=5,
                 figure={"metric": "return", "x": "split_ratio", "xlabel": "split ratio alpha"},
@@ -356,31 +360,31 @@ def builtin_experiments() -> dict[str, Experiment]:
             _builtin(
                 "fig-throughput-vs-nodes",
                 "data collected against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
                 figure={"metric": "data_bits", "x": "n_nodes"},
             ),
             _builtin(
                 "fig-steps-to-data-target",
                 "steps to collect half of the collectable data, against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
                 figure={"metric": "steps_to_data_target", "x": "n_nodes"},
             ),
             _builtin(
                 "fig-efficiency-vs-nodes",
                 "energy efficiency against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
                 figure={"metric": "mobility_efficiency_bit_per_j", "x": "n_nodes"},
             ),
             _builtin(
                 "fig-harvested-vs-nodes",
                 "energy delivered to the nodes against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
                 figure={"metric": "energy_delivered_j", "x": "n_nodes"},
             ),
             _builtin(
                 "fig-steps-to-energy-target",
                 "steps to deliver half of the deliverable energy, against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_ALL, layouts=20, episodes=5,
+                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
                 figure={"metric": "steps_to_energy_target", "x": "n_nodes"},
             ),
         )

@@ -2,7 +2,8 @@
 
 A task builds the environment from its resolved scenario, builds (and, for RL, trains) the
 policy with the task's seed, evaluates it with :func:`swiptopt.evaluate` on the task's
-evaluation seeds, and returns per-episode records with the scenario's bounds. Everything a
+evaluation seeds, and returns per-episode records with the scenario's bounds and what the
+algorithm records of itself (the MILP: its status, best, bound and gap). Everything a
 task computes comes from its configuration and seed, so the numbers do not depend on where
 it ran. Tasks go out in small batches; every finished task is committed to the store as
 soon as its batch returns.
@@ -49,7 +50,7 @@ from swiptopt.errors import ConfigError
 NATIVE_MODULES = {
     "rl": ("numba",),
     "planner": ("numba", "sklearn.cluster", "ortools.constraint_solver.pywrapcp", "ortools.sat.python.cp_model",
-                "cvxpy"),
+                "cvxpy", "highspy", "scipy.sparse.csgraph"),
 }
 #: Local worker processes (``--workers`` or ``local:N``) allowed per core of the machine.
 MAX_WORKERS_PER_CORE = 4
@@ -63,7 +64,7 @@ DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
     """Run one task (a :meth:`Task.to_dict`); returns its result for the store."""
     from planners.bounds import EXACT_STATE_LIMIT, exact_optimum, exact_state_bound, upper_bound
-    from swiptopt.benchmark.algorithms import build_policy
+    from swiptopt.benchmark.algorithms import build_policy, task_extra
     from swiptopt.env import AuvSwiptEnv
     from swiptopt.evaluation import evaluate
     from swiptopt.scenario import Scenario
@@ -75,7 +76,7 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     policy = build_policy(t.algorithm, env, t.settings, t.seed)
     result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_OFFSET)
     bound = upper_bound(scenario, env.tables)
-    extra: dict[str, Any] = {"upper_bound_return": bound.return_}
+    extra: dict[str, Any] = {"upper_bound_return": bound.return_, **task_extra(t.algorithm, policy, env)}
     if scenario.name == "tiny" and scenario.channel == "none" and scenario.failure_prob_max == 0:
         # decided before running: the search's size is bounded from the scenario alone
         states = exact_state_bound(scenario, env.tables)

@@ -5,6 +5,21 @@ seeds), so the confidence interval reflects the variation between layouts, as in
 paper's Monte Carlo over layouts. A metric with no value in an episode (a target never
 reached) is left out of that average and counted as missing, never as a number.
 
+The gap to bound, ``(bound - return) / |bound|`` per task, is taken against the tightest
+bound the experiment has for that task's scenario (the same sweep point and layout): a
+solver's proven bound where one of the experiment's tasks recorded it (the MILP's
+``bound_return``), else :func:`planners.upper_bound`; the ``bound`` column says which, in
+words that say what it bounds:
+
+- ``milp``: the MILP's bound with a deterministic channel, a bound on every policy;
+- ``milp (expected)``: its bound with a stochastic channel, which bounds the expected-rate
+  relaxation of open-loop walks only (:mod:`planners.optimal`): a policy that reacts to the
+  draws may exceed it, and then shows a negative gap;
+- ``upper``: every coverable node fully served with no travel, a bound on every policy.
+
+The MILP's own row adds [best, bound]: the mean of its plans' values in its model and of
+its bounds.
+
 An experiment with a ``baseline`` algorithm also gets a paired table (:func:`paired`): for
 each other algorithm and metric, the ratio of its mean to the baseline's over the tasks both
 ran (the same scenario, layout and seed), a 95 % bootstrap confidence interval of that
@@ -16,6 +31,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,13 +39,20 @@ import numpy as np
 
 from swiptopt.benchmark.algorithms import labels
 from swiptopt.evaluation import Summary
-from swiptopt.benchmark.experiment import Experiment
+from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.benchmark.store import ResultStore
 
 #: Extra columns beyond the episode metrics.
 GAP_BOUND = "gap_to_bound"
 GAP_OPTIMUM = "gap_to_optimum"
+#: A solver's own numbers, in its row: its plans' values in its model and its bounds.
+SOLVER_BEST = "best_return"
+SOLVER_BOUND = "bound_return"
+#: The bound column's word for planners.upper_bound.
+UPPER = "upper"
+#: Solver statuses that come with a plan and a bound.
+SOLVED = ("optimal", "feasible")
 
 #: The columns of the terminal / Markdown / LaTeX tables: (metric, heading, scale, digits).
 DISPLAY = (
@@ -55,6 +78,11 @@ class Row:
     summaries: dict[str, Summary]
     rank: int
     tasks: int
+    bound: str = UPPER
+    """Which bound the gap is measured against (module docstring); several, with their
+    task counts, when the layouts differ."""
+    notes: str = ""
+    """A solver's statuses other than optimal or feasible, and safety time limits hit."""
 
 
 def _task_mean(records: list[dict[str, Any]], metric: str) -> float | None:
@@ -75,24 +103,64 @@ def _stored(experiment: Experiment, store: ResultStore) -> tuple[dict[tuple[int,
     return out, len(tasks) - sum(len(v) for v in out.values())
 
 
+def _references(stored: dict[tuple[int, str], dict[int, dict[str, Any]]], p: int) -> dict[int, tuple[float, str]]:
+    """The tightest solver bound recorded at sweep point ``p``, per layout: (value, label)."""
+    out: dict[int, tuple[float, str]] = {}
+    for (q, _), found in stored.items():
+        if q != p:
+            continue
+        for seed, r in found.items():
+            value, label = r["extra"].get(SOLVER_BOUND), r["extra"].get("bound_label")
+            if value is None or not label or not math.isfinite(value):
+                continue
+            layout = seed // SEEDS_PER_LAYOUT
+            if layout not in out or value < out[layout][0]:
+                out[layout] = (float(value), str(label))
+    return out
+
+
+def _bound_words(labels_used: list[str]) -> str:
+    counts = Counter(labels_used)
+    if len(counts) <= 1:
+        return next(iter(counts), "n/a")
+    return ", ".join(f"{label} {n}/{len(labels_used)}" for label, n in counts.most_common())
+
+
+def _solver_notes(found: list[dict[str, Any]]) -> str:
+    extras = [r["extra"] for r in found if "solver_status" in r["extra"]]
+    unsolved = Counter(e["solver_status"] for e in extras if e["solver_status"] not in SOLVED)
+    notes = [f"{status} {n}/{len(extras)}" for status, n in sorted(unsolved.items())]
+    hit = sum(bool(e.get("solver_time_limit_hit")) for e in extras)
+    if hit:
+        notes.append(f"time limit hit {hit}/{len(extras)}")
+    return ", ".join(notes)
+
+
 def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], int]:
     """Rows of the experiment's stored results, and how many of its tasks are missing."""
     stored, missing = _stored(experiment, store)
     names = labels()
     rows = []
     for p, point in enumerate(experiment.points()):
+        references = _references(stored, p)
         point_rows = []
         for algorithm in experiment.algorithms:
-            found = list(stored.get((p, algorithm), {}).values())
+            by_seed = stored.get((p, algorithm), {})
+            found = list(by_seed.values())
             if not found:
                 continue
             per_metric: dict[str, list[Any]] = {m: [_task_mean(r["records"], m) for r in found] for m in EPISODE_METRICS}
-            gaps, optimum_gaps = [], []
-            for r in found:
+            gaps, optimum_gaps, used = [], [], []
+            for seed, r in by_seed.items():
                 ret = _task_mean(r["records"], "return")
-                bound = r["extra"].get("upper_bound_return")
+                layout = seed // SEEDS_PER_LAYOUT
+                candidates = [references[layout]] if layout in references else []
+                if r["extra"].get("upper_bound_return") is not None:
+                    candidates.append((float(r["extra"]["upper_bound_return"]), UPPER))
+                bound, label = min(candidates, key=lambda c: c[0]) if candidates else (None, "")
                 if ret is not None and bound:
                     gaps.append((bound - ret) / abs(bound))
+                    used.append(label)
                 opt = r["extra"].get("optimum_return")
                 if ret is not None and opt:
                     optimum_gaps.append((opt - ret) / abs(opt))
@@ -100,11 +168,14 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
             summaries[GAP_BOUND] = Summary.of(gaps)
             if optimum_gaps:
                 summaries[GAP_OPTIMUM] = Summary.of(optimum_gaps)
-            point_rows.append((algorithm, summaries, len(found)))
+            if any(SOLVER_BOUND in r["extra"] for r in found):
+                for key in (SOLVER_BEST, SOLVER_BOUND):
+                    summaries[key] = Summary.of([r["extra"].get(key) for r in found])
+            point_rows.append((algorithm, summaries, len(found), _bound_words(used), _solver_notes(found)))
         order = sorted(range(len(point_rows)), key=lambda i: -point_rows[i][1]["return"].mean)
         ranks = {i: r + 1 for r, i in enumerate(order)}
-        for i, (algorithm, summaries, n) in enumerate(point_rows):
-            rows.append(Row(point, algorithm, names.get(algorithm, algorithm), summaries, ranks[i], n))
+        for i, (algorithm, summaries, n, bound, notes) in enumerate(point_rows):
+            rows.append(Row(point, algorithm, names.get(algorithm, algorithm), summaries, ranks[i], n, bound, notes))
     return rows, missing
 
 
@@ -239,8 +310,16 @@ def _point_label(point: dict[str, Any]) -> str:
 def _headings(rows: list[Row]) -> list[str]:
     has_point = any(r.point for r in rows)
     has_opt = any(GAP_OPTIMUM in r.summaries for r in rows)
-    heads = (["point"] if has_point else []) + ["algorithm", "rank"] + [h for _, h, _, _ in DISPLAY]
+    heads = (["point"] if has_point else []) + ["algorithm", "rank"] + [h for _, h, _, _ in DISPLAY] + ["bound"]
     return heads + (["gap to optimum"] if has_opt else [])
+
+
+def _solver_cell(row: Row) -> str:
+    """A solver's [best, bound] (means over its tasks), or '' for other rows."""
+    best, bound = row.summaries.get(SOLVER_BEST), row.summaries.get(SOLVER_BOUND)
+    if best is None or bound is None or best.n == 0 or bound.n == 0:
+        return ""
+    return f" [{best.mean:.2f}, {bound.mean:.2f}]"
 
 
 def _cells(row: Row, rows: list[Row]) -> list[str]:
@@ -249,11 +328,19 @@ def _cells(row: Row, rows: list[Row]) -> list[str]:
     out = ([_point_label(row.point)] if has_point else []) + [row.label, str(row.rank)]
     for metric, _, scale, digits in DISPLAY:
         text = _cell(row.summaries.get(metric), scale, digits)
-        out.append(text + (" %" if metric == GAP_BOUND and text != "n/a" else ""))
+        if metric == GAP_BOUND:
+            text += (" %" if text != "n/a" else "") + _solver_cell(row)
+        out.append(text)
+    out.append(row.bound + (f" ({row.notes})" if row.notes else ""))
     if has_opt:
         opt = _cell(row.summaries.get(GAP_OPTIMUM), 100.0, 0)
         out.append(opt + (" %" if opt != "n/a" else ""))
     return out
+
+
+def _text_columns(rows: list[Row]) -> int:
+    """How many leading columns hold text (the point, the algorithm, the rank)."""
+    return 3 if any(r.point for r in rows) else 2
 
 
 def _markdown(heads: list[str], cells: list[list[str]]) -> str:
@@ -304,7 +391,8 @@ def to_markdown(rows: list[Row]) -> str:
 
 
 def to_latex(rows: list[Row]) -> str:
-    return _latex(_headings(rows), [_cells(r, rows) for r in rows], len(DISPLAY))
+    heads = _headings(rows)
+    return _latex(heads, [_cells(r, rows) for r in rows], len(heads) - _text_columns(rows))
 
 
 def paired_to_csv(rows: list[PairedRow]) -> str:
@@ -341,14 +429,16 @@ def paired_to_rich(rows: list[PairedRow], title: str):  # type: ignore[no-untype
 
 
 def to_csv(rows: list[Row]) -> str:
-    """Every metric of every row: mean, ci95, min, max, n, missing."""
+    """Every metric of every row: mean, ci95, min, max, n, missing, and the row's bound (what
+    its gap to bound is measured against) and solver notes."""
     buf = io.StringIO()
     writer = csv.writer(buf)
     keys = sorted({k for r in rows for k in r.point})
-    writer.writerow(keys + ["algorithm", "rank", "metric", "mean", "ci95", "min", "max", "n", "missing"])
+    writer.writerow(keys + ["algorithm", "rank", "metric", "mean", "ci95", "min", "max", "n", "missing", "bound", "notes"])
     for r in rows:
         for metric, s in r.summaries.items():
-            writer.writerow([r.point.get(k) for k in keys] + [r.algorithm, r.rank, metric, s.mean, s.ci95, s.min, s.max, s.n, s.missing])
+            writer.writerow([r.point.get(k) for k in keys]
+                            + [r.algorithm, r.rank, metric, s.mean, s.ci95, s.min, s.max, s.n, s.missing, r.bound, r.notes])
     return buf.getvalue()
 
 

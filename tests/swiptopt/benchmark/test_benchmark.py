@@ -165,7 +165,24 @@ def test_dask_local_cluster_gives_the_same_table(tmp_path):
 
 def test_builtin_lookup():
     assert load_experiment("compare").name == "compare"
-    assert set(builtin_experiments()["compare"].algorithms) == {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy"}
+    builtins = builtin_experiments()
+    planners_and_agents = {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy", "rate_greedy"}
+    assert set(builtins["compare"].algorithms) == planners_and_agents | {"milp"}
+    assert builtins["compare"].algorithms["milp"] == {"budget": "compare"}
+    optimum = builtins["optimum"]
+    assert set(optimum.algorithms) == planners_and_agents | {"milp"}
+    assert optimum.algorithms["milp"] == {"budget": "default"} and optimum.layouts == 10
+    assert (optimum.scenario["n_nodes"], optimum.scenario["channel"], optimum.scenario["failure_prob_max"]) == (25, "none", 0)
+    # the figures' sweeps run every algorithm but the MILP
+    for e in builtins.values():
+        if e.figure:
+            assert set(e.algorithms) == planners_and_agents, e.name
+    # --quick shrinks the MILP to its quick budget and the training and solver limits
+    quick = optimum.quick()
+    assert quick.algorithms["milp"] == {"budget": "quick"}
+    assert quick.algorithms["q_learning"] == {"train_episodes": 2000}
+    # the TSP's time limit is only a safety net: shortening it would make results machine-dependent
+    assert quick.algorithms["kmeans_tsp"] == {"ompl_time_limit_s": 0.05}
 
 
 def test_ratio_of_means_and_its_interval():
