@@ -48,7 +48,7 @@ def main() -> None:
         rates["FrozenLake-v1"].append(steps_per_second(frozen, 4, args.steps, r))
     med = {k: statistics.median(v) for k, v in rates.items()}
     print(f"steps per second through gymnasium.make, median of {args.repeats} x {args.steps} steps")
-    print(f"  swiptopt/AuvSwipt-v0 (paper, {args.nodes} nodes, {ours.unwrapped.backend} kernel): {med['swiptopt paper']:>12,.0f}")
+    print(f"  swiptopt/AuvSwipt-v1 (paper, {args.nodes} nodes, {ours.unwrapped.backend} kernel): {med['swiptopt paper']:>12,.0f}")
     print(f"  FrozenLake-v1:                                       {med['FrozenLake-v1']:>12,.0f}")
     print(f"  ratio swiptopt / FrozenLake: {med['swiptopt paper'] / med['FrozenLake-v1']:.2f}")
 

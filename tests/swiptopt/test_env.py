@@ -42,7 +42,7 @@ def rollout(env, seed, actions):
     trace = [obs]
     for a in actions:
         obs, r, term, trunc, info = env.step(a)
-        trace.append((np.asarray(obs).tobytes(), r, term, trunc, info["reward_parts"], info.get("episode")))
+        trace.append((np.asarray(obs).tobytes(), r, term, trunc, info["reward_parts"], info.get("episode_metrics")))
         if term or trunc:
             obs, _ = env.reset()
             trace.append(obs)
@@ -99,7 +99,7 @@ def test_invariants_over_random_rollouts(preset, overrides):
                 assert s.cell == cell
             assert not env.scenario.blocked_cells[s.cell]
             if term or trunc:
-                m = info["episode"]
+                m = info["episode_metrics"]
                 assert set(EPISODE_METRICS) <= set(m)
                 assert m["data_bits"] == pytest.approx(s.collected.sum())
                 assert m["auv_energy_j"] == pytest.approx(m["auv_propulsion_j"] + m["auv_hotel_j"] + m["auv_projector_j"])
@@ -206,7 +206,7 @@ def test_episode_end_metrics_and_target_steps():
     for _ in range(3):
         _, _, term, trunc, info = env.step(K.HOVER)
     assert trunc and not term
-    m = info["episode"]
+    m = info["episode_metrics"]
     assert m["steps_to_data_target"] == 1  # all data in the first step
     assert m["steps_to_energy_target"] is None  # half the free storage takes more steps
     assert m["length"] == 3 and m["mission_time_s"] == pytest.approx(20.0)
