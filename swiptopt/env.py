@@ -8,6 +8,7 @@ plan executor use.
 from __future__ import annotations
 
 import dataclasses
+from collections import OrderedDict
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
@@ -31,6 +32,10 @@ INFO_KEY = "episode_metrics"
 
 #: The keys ``reset(options=...)`` accepts.
 RESET_OPTIONS = ("layout_seed",)
+
+#: How many layouts an env keeps built, least recently used dropped first: training on up to
+#: this many layouts builds each once.
+LAYOUT_CACHE_SIZE = 64
 
 #: Layout seeds are those of :attr:`Scenario.layout_seed`.
 _MAX_LAYOUT_SEED = 2**63 - 1
@@ -148,7 +153,8 @@ class AuvSwiptEnv(gym.Env):
     (and draws nothing). The reset's ``info["layout_seed"]`` says which layout the episode
     runs on, and ``env.scenario`` is that layout's scenario. A new layout rebuilds only the
     layout's part of the kernel tables (:func:`swiptopt.kernel.with_layout`); the grid, the
-    moves and the spaces stay. Other reset options are errors.
+    moves and the spaces stay, and the last :data:`LAYOUT_CACHE_SIZE` layouts stay built.
+    Other reset options are errors.
 
     ## Arguments
 
@@ -200,6 +206,7 @@ class AuvSwiptEnv(gym.Env):
         self.observation = observation
         self.render_mode = render_mode
         self.tables = K.build_tables(scenario)
+        self._layouts = OrderedDict([(scenario.layout_seed, (scenario, self.tables))])
         if backend == "auto":
             backend = "compiled" if numba_available() else "python"
         self.backend = backend
@@ -264,9 +271,16 @@ class AuvSwiptEnv(gym.Env):
         return self._scenario0.layout_seed
 
     def _use_layout(self, layout_seed: int) -> None:
-        """Switch to another layout of the same scenario, rebuilding only what it changes."""
-        self.scenario = self._scenario0.replace(layout_seed=layout_seed)
-        self.tables = K.with_layout(self.tables, self.scenario)
+        """Switch to another layout of the same scenario, rebuilding only what it changes
+        (once for each of the last :data:`LAYOUT_CACHE_SIZE` layouts used)."""
+        built = self._layouts.pop(layout_seed, None)
+        if built is None:
+            scenario = self._scenario0.replace(layout_seed=layout_seed)
+            built = (scenario, K.with_layout(self.tables, scenario))
+        self._layouts[layout_seed] = built  # the most recently used last
+        if len(self._layouts) > LAYOUT_CACHE_SIZE:
+            self._layouts.popitem(last=False)
+        self.scenario, self.tables = built
         if self._vector:
             self._set_layout_features()
         if self.state is not None:

@@ -369,3 +369,22 @@ def test_bad_reset_options_and_layout_seeds():
         with pytest.raises(swiptopt.ConfigError, match="layout_seeds"):
             AuvSwiptEnv(preset="tiny", layout_seeds=bad)
     assert env.reset(options={})[1]["layout_seed"] == 0
+
+
+def test_recent_layouts_stay_built():
+    from swiptopt.env import LAYOUT_CACHE_SIZE
+
+    env = AuvSwiptEnv(preset="tiny", layout_seeds=range(3))
+    built = {}
+    for s in range(30):
+        _, info = env.reset(seed=s)
+        assert env.tables is built.setdefault(info["layout_seed"], env.tables)  # built once each
+    first = env.reset(options={"layout_seed": 100})[0] is not None and env.tables
+    for k in range(101, 101 + LAYOUT_CACHE_SIZE):
+        env.reset(options={"layout_seed": k})
+    recent = env.tables
+    env.reset(options={"layout_seed": 100})  # dropped: built again, the same
+    assert env.tables is not first
+    np.testing.assert_array_equal(env.tables.cov_node, first.cov_node)
+    env.reset(options={"layout_seed": 100 + LAYOUT_CACHE_SIZE})
+    assert env.tables is recent
