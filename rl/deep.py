@@ -78,8 +78,9 @@ class DeepConfig:
     unset ones keep SB3's defaults."""
     policy_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """SB3's ``policy_kwargs`` (e.g. ``{"net_arch": [64, 64]}``)."""
-    layout_seeds: tuple[int, ...] | None = None
-    """Train across these layouts, one drawn per episode; ``None``: the scenario's layout."""
+    layout_seeds: range | tuple[int, ...] | None = None
+    """Train across these layouts, one drawn per episode; ``None``: the scenario's layout. A
+    ``range`` stays a range (it names its layouts by start, stop and step)."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in DEEP_ALGORITHMS:
@@ -99,7 +100,12 @@ class DeepConfig:
             seeds = self.layout_seeds
             if isinstance(seeds, (str, bytes, Mapping)) or not isinstance(seeds, (Sequence, np.ndarray)) or not len(seeds):
                 raise ConfigError(f"layout_seeds = {seeds!r} must be a non-empty sequence of layout seeds", "layout_seeds")
-            object.__setattr__(self, "layout_seeds", tuple(_check_int("layout_seeds", s, 0) for s in seeds))
+            if isinstance(seeds, range):
+                if min(seeds[0], seeds[-1]) < 0:
+                    raise ConfigError(f"layout_seeds = {seeds!r} must hold integers >= 0", "layout_seeds")
+            else:
+                seeds = tuple(_check_int("layout_seeds", s, 0) for s in seeds)
+            object.__setattr__(self, "layout_seeds", seeds)
 
     def check_hyperparams(self) -> None:
         """Unknown SB3 arguments are errors naming the allowed ones (imports SB3)."""
@@ -126,8 +132,14 @@ class DeepConfig:
             "seed": self.seed,
             "hyperparams": dict(self.hyperparams),
             "policy_kwargs": dict(self.policy_kwargs),
-            "layout_seeds": None if self.layout_seeds is None else list(self.layout_seeds),
+            "layout_seeds": _layout_seeds_dict(self.layout_seeds),
         }
+
+
+def _layout_seeds_dict(seeds: range | tuple[int, ...] | None) -> Any:
+    if isinstance(seeds, range):
+        return {"start": seeds.start, "stop": seeds.stop, "step": seeds.step}
+    return None if seeds is None else list(seeds)
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,8 +202,6 @@ def _canonical(value: Any) -> Any:
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
-    if isinstance(value, range):
-        return list(value)
     raise TypeError(f"cannot hash a setting of type {type(value).__name__}: {value!r}")
 
 
@@ -280,14 +290,7 @@ def train_deep(
     ``hyperparams`` are SB3 constructor arguments, ``policy_kwargs`` SB3's. The same
     arguments give the same model, bit for bit (see the module docstring).
     """
-    config = DeepConfig(
-        algorithm,
-        timesteps,
-        seed,
-        hyperparams or {},
-        policy_kwargs or {},
-        None if layout_seeds is None else tuple(layout_seeds),
-    )
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
     config.check_hyperparams()
     env, scenario = _training_env(scenario_or_env, config)
     pin_torch()
@@ -373,14 +376,7 @@ def train_or_load_deep(
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
-    config = DeepConfig(
-        algorithm,
-        timesteps,
-        seed,
-        hyperparams or {},
-        policy_kwargs or {},
-        None if layout_seeds is None else tuple(layout_seeds),
-    )
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
     key = deep_config_hash(config, scenario)
     path = Path(directory) / f"{algorithm}-{key}.zip"
     if path.is_file():

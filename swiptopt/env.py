@@ -78,7 +78,9 @@ def _layout_seed(value: Any, name: str) -> int:
     return int(value)
 
 
-def _layout_seeds(value: Any) -> np.ndarray | None:
+def _layout_seeds(value: Any) -> Sequence[int] | None:
+    """The validated layout seeds: a ``range`` as it is (never materialised), others as an
+    int64 array."""
     if value is None:
         return None
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
@@ -88,9 +90,9 @@ def _layout_seeds(value: Any) -> np.ndarray | None:
     if len(value) == 0:
         raise ConfigError("layout_seeds is empty: give at least one layout seed", "layout_seeds")
     if isinstance(value, range):
-        if value.start < 0 or value[-1] < 0 or max(value.start, value[-1]) > _MAX_LAYOUT_SEED:
+        if min(value[0], value[-1]) < 0 or max(value[0], value[-1]) > _MAX_LAYOUT_SEED:
             raise ConfigError(f"layout_seeds = {value!r} must hold integers in [0, 2**63 - 1]", "layout_seeds")
-        return np.arange(value.start, value.stop, value.step, dtype=np.int64)
+        return value
     return np.array([_layout_seed(v, "layout_seeds[...]") for v in value], dtype=np.int64)
 
 
@@ -267,7 +269,7 @@ class AuvSwiptEnv(gym.Env):
             if "layout_seed" in options:
                 return _layout_seed(options["layout_seed"], "options['layout_seed']")
         if self.layout_seeds is not None:
-            return int(self.layout_seeds[self.np_random.integers(len(self.layout_seeds))])
+            return int(self.layout_seeds[int(self.np_random.integers(len(self.layout_seeds)))])
         return self._scenario0.layout_seed
 
     def _use_layout(self, layout_seed: int) -> None:

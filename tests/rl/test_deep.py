@@ -92,7 +92,7 @@ def test_the_same_seed_trains_the_same_model(algorithm):
 
 def test_training_across_layouts():
     result = _train("ppo", layout_seeds=range(0, 50), timesteps=300)
-    assert result.config.layout_seeds == tuple(range(50))
+    assert result.config.layout_seeds == range(50)
     assert result.config_hash != _train("ppo", timesteps=300).config_hash
     assert len(result.episode_returns) > 0 and np.all(np.isfinite(result.episode_returns))
 

@@ -347,6 +347,9 @@ def test_layouts_drawn_per_episode():
     assert unseeded == {11, 12, 13, 14}
     positions = {env.reset(options={"layout_seed": k})[1]["layout_seed"]: env.scenario.layout.positions_m.copy() for k in (11, 12)}
     assert not np.allclose(positions[11], positions[12])
+    huge = AuvSwiptEnv(preset="tiny", layout_seeds=range(10**12, 2 * 10**12, 7))  # never materialised
+    seed = huge.reset(seed=0)[1]["layout_seed"]
+    assert 10**12 <= seed < 2 * 10**12 and (seed - 10**12) % 7 == 0
 
 
 def test_an_unused_layout_path_rebuilds_nothing():
