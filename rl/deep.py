@@ -33,7 +33,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from swiptopt import ENV_ID
-from swiptopt.env import INFO_KEY, AuvSwiptEnv
+from swiptopt.env import INFO_KEY, AuvSwiptEnv, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import Scenario
 
@@ -96,16 +96,10 @@ class DeepConfig:
             if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
                 raise ConfigError(f"{name} = {value!r} must be a mapping of argument names to values", name)
             object.__setattr__(self, name, dict(value))
-        if self.layout_seeds is not None:
-            seeds = self.layout_seeds
-            if isinstance(seeds, (str, bytes, Mapping)) or not isinstance(seeds, (Sequence, np.ndarray)) or not len(seeds):
-                raise ConfigError(f"layout_seeds = {seeds!r} must be a non-empty sequence of layout seeds", "layout_seeds")
-            if isinstance(seeds, range):
-                if min(seeds[0], seeds[-1]) < 0:
-                    raise ConfigError(f"layout_seeds = {seeds!r} must hold integers >= 0", "layout_seeds")
-            else:
-                seeds = tuple(_check_int("layout_seeds", s, 0) for s in seeds)
-            object.__setattr__(self, "layout_seeds", seeds)
+        seeds = check_layout_seeds(self.layout_seeds)
+        if seeds is not None and not isinstance(seeds, range):
+            seeds = tuple(int(s) for s in seeds)
+        object.__setattr__(self, "layout_seeds", seeds)
 
     def check_hyperparams(self) -> None:
         """Unknown SB3 arguments are errors naming the allowed ones (imports SB3)."""

@@ -78,9 +78,9 @@ def _layout_seed(value: Any, name: str) -> int:
     return int(value)
 
 
-def _layout_seeds(value: Any) -> Sequence[int] | None:
-    """The validated layout seeds: a ``range`` as it is (never materialised), others as an
-    int64 array."""
+def check_layout_seeds(value: Any) -> Sequence[int] | None:
+    """Validated layout seeds (a :class:`~swiptopt.ConfigError` naming ``layout_seeds``
+    otherwise): a ``range`` as it is (never materialised), other sequences as an int64 array."""
     if value is None:
         return None
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
@@ -202,7 +202,7 @@ class AuvSwiptEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        self.layout_seeds = _layout_seeds(layout_seeds)
+        self.layout_seeds = check_layout_seeds(layout_seeds)
         self.scenario = scenario
         self._scenario0 = scenario  # the layouts of other episodes are variations of it
         self.observation = observation

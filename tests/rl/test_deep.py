@@ -134,6 +134,8 @@ def test_bad_configurations_are_config_errors(tmp_path):
         train_deep("ppo", TINY, 100, hyperparams={"seed": 1})  # set through the argument only
     with pytest.raises(swiptopt.ConfigError, match="timesteps"):
         train_deep("dqn", TINY, 0)
+    with pytest.raises(swiptopt.ConfigError, match="layout_seeds"):
+        DeepConfig("dqn", 10, layout_seeds=[3, -1])
     with pytest.raises(swiptopt.ConfigError, match="vector"):
         train_deep("dqn", AuvSwiptEnv(TINY), 100)  # the tabular observation
     with pytest.raises(swiptopt.ConfigError, match="rejected"):
