@@ -195,7 +195,10 @@ def _evaluate_vector(policy: Policy, env: Any, kind: str, episodes: int, seed: i
         if kind == "sb3":
             env.seed(seed + first)  # SB3 gives sub-env k the seed seed + first + k at the next reset
             obs = env.reset()
-            layouts = [info.get("layout_seed") for info in env.reset_infos]
+            inner = env
+            while hasattr(inner, "venv"):  # SB3's VecEnv wrappers do not pass reset_infos on
+                inner = inner.venv
+            layouts = [info.get("layout_seed") for info in inner.reset_infos]
         else:
             obs, infos = env.reset(seed=[seed + first + k for k in range(n)])
             layouts = [infos["layout_seed"][k] if infos.get("_layout_seed", np.zeros(n))[k] else None for k in range(n)]

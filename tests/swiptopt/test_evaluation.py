@@ -132,6 +132,8 @@ def test_sb3_vector_envs_give_the_single_env_records(n_envs):
     reference = _reference(lambda: _tiny(layout_seeds=range(10)))
     venv = vec_env.DummyVecEnv([lambda: monitor(_tiny(layout_seeds=range(10)))] * n_envs)
     assert swiptopt.evaluate(ByObservation(), venv, 5, seed=7).records == reference
+    wrapped = vec_env.VecNormalize(venv, norm_obs=False, norm_reward=False, training=False)
+    assert swiptopt.evaluate(ByObservation(), wrapped, 5, seed=7).records == reference
 
 
 def test_vector_envs_refuse_what_they_cannot_do():
