@@ -175,7 +175,7 @@ while True:
     parts.append(info["reward_parts"])
     if terminated or truncated:
         break
-episode = info["episode"]
+episode = info["episode_metrics"]
 path_m = scenario.cell_centers_m[np.asarray(env.path)]
 state = env.state
 nodes_m = scenario.layout.positions_m

@@ -2,22 +2,42 @@
 
 ``RandomAgent``, ``QLearningAgent`` and ``SarsaAgent`` (the paper's), ``train`` with a
 Python and a compiled backend, and ``paper_protocol`` (train, then evaluate greedily).
+Deep RL (Stable-Baselines3's PPO and DQN, the ``deeprl`` extra): ``train_deep``,
+``load_deep``, ``train_or_load_deep`` in :mod:`rl.deep`, which loads torch only when used.
 """
 
 from rl.agents import AGENTS, QLearningAgent, RandomAgent, SarsaAgent, make_agent
 from rl.config import TabularConfig
+from rl.deep import (
+    DEEP_ALGORITHMS,
+    DeepConfig,
+    DeepResult,
+    deep_config_hash,
+    load_deep,
+    save_deep,
+    train_deep,
+    train_or_load_deep,
+)
 from rl.protocol import ProtocolResult, paper_protocol
 from rl.training import TrainingLog, train
 
 __all__ = [
     "AGENTS",
+    "DEEP_ALGORITHMS",
+    "DeepConfig",
+    "DeepResult",
     "ProtocolResult",
     "QLearningAgent",
     "RandomAgent",
     "SarsaAgent",
     "TabularConfig",
     "TrainingLog",
+    "deep_config_hash",
+    "load_deep",
     "make_agent",
     "paper_protocol",
+    "save_deep",
     "train",
+    "train_deep",
+    "train_or_load_deep",
 ]

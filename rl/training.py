@@ -19,6 +19,7 @@ from rl import core
 from rl.agents import RandomAgent, _TabularAgent
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
+from swiptopt.evaluation import final_metrics
 from swiptopt.limits import check_size, training_log_note
 
 BACKENDS = ("python", "compiled")
@@ -66,8 +67,9 @@ def train(
 
     The agent acts epsilon-greedily, learns from every transition (SARSA picks its next
     action before the update, Q-learning after) and decays epsilon after each episode.
-    ``env`` must be a ``swiptopt/AuvSwipt-v0`` environment with tabular observations for the
-    ``compiled`` backend. After a compiled run the environment must be reset before use.
+    ``env`` must be a ``swiptopt/AuvSwipt-v1`` environment with tabular observations and one
+    layout (no ``layout_seeds``) for the ``compiled`` backend. After a compiled run the
+    environment must be reset before use.
     """
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 0:
         raise ConfigError(f"episodes = {episodes!r} must be a non-negative integer", "episodes")
@@ -96,7 +98,7 @@ def _train_python(agent: Any, env: Any, episodes: int, seed: int | None, log: np
             if not agent.sarsa:
                 a_next = agent.act(obs_next)
             obs, a = obs_next, a_next
-        m = info["episode"]
+        m = final_metrics(env, info)
         log[ep] = (
             m["return"], m["length"], m["data_bits"], m["energy_delivered_j"], m["auv_energy_j"],
             m["energy_efficiency_bit_per_j"], m["mobility_efficiency_bit_per_j"], epsilon,
@@ -217,6 +219,9 @@ def _train_compiled(agent: Any, env: Any, episodes: int, seed: int | None, log: 
     base = env.unwrapped
     if getattr(base, "observation", None) != "tabular" or not hasattr(base, "tables"):
         raise ConfigError("the compiled backend needs a swiptopt env with observation='tabular'", "backend")
+    if getattr(base, "layout_seeds", None) is not None:
+        # the compiled loop runs every episode on the tables of its first reset
+        raise ConfigError("the compiled backend trains on one layout: use backend='python' with layout_seeds", "backend")
     if isinstance(agent, RandomAgent):
         kind, q, cfg = 0, np.zeros((1, agent.n_actions)), None
     elif isinstance(agent, _TabularAgent):

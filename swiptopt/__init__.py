@@ -2,8 +2,9 @@
 underwater sensor network with acoustic SWIPT.
 
 The model modules need only numpy; importing the package also registers the Gymnasium
-environment ``swiptopt/AuvSwipt-v0``. Solvers, plotting, numba and clusters load where they
-are used, so ``import swiptopt`` stays fast and quiet.
+environment ``swiptopt/AuvSwipt-v1`` (v0 is gone: see the env's Version History). Solvers,
+plotting, numba and clusters load where they are used, so ``import swiptopt`` stays fast
+and quiet.
 """
 
 from gymnasium.envs.registration import register, registry
@@ -14,8 +15,10 @@ from swiptopt.scenario import PRESETS, Box, Scenario, ScenarioError, Sphere
 
 __version__ = "0.1.0"
 
-ENV_ID = "swiptopt/AuvSwipt-v0"
+ENV_ID = "swiptopt/AuvSwipt-v1"
 if ENV_ID not in registry:
+    # no max_episode_steps here: the scenario sets the episode length, and the env reports it
+    # in its spec (AuvSwiptEnv.spec)
     register(id=ENV_ID, entry_point="swiptopt.env:AuvSwiptEnv")
 
 __all__ = [

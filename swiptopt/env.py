@@ -1,25 +1,99 @@
 """The Gymnasium environment: an AUV collecting data from and recharging underwater nodes.
 
-Registered as ``swiptopt/AuvSwipt-v0`` (``import swiptopt`` registers it). Every step goes
+Registered as ``swiptopt/AuvSwipt-v1`` (``import swiptopt`` registers it). Every step goes
 through :func:`swiptopt.kernel.step`, the same function the fast trainer and the planners'
 plan executor use.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections import OrderedDict
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 
 from swiptopt import kernel as K
+from swiptopt.errors import ConfigError
 from swiptopt.jit import numba_available
 from swiptopt.metrics import episode_metrics
 from swiptopt.scenario import Scenario
 
 OBSERVATIONS = ("tabular", "vector")
 BACKENDS = ("auto", "compiled", "python")
+
+#: The ``info`` key of the episode's metrics at its last step. Gymnasium's
+#: ``RecordEpisodeStatistics`` and SB3's ``Monitor`` own ``info["episode"]``.
+INFO_KEY = "episode_metrics"
+
+#: The keys ``reset(options=...)`` accepts.
+RESET_OPTIONS = ("layout_seed",)
+
+#: How many layouts an env keeps built, least recently used dropped first: training on up to
+#: this many layouts builds each once.
+LAYOUT_CACHE_SIZE = 64
+
+#: Layout seeds are those of :attr:`Scenario.layout_seed`.
+_MAX_LAYOUT_SEED = 2**63 - 1
+
+
+class EpisodeMetrics(Mapping):
+    """The metrics of one episode (:func:`swiptopt.metrics.episode_metrics`), read-only:
+    ``m["return"]``, ``dict(m)``.
+
+    A mapping, not a ``dict``, so that Gymnasium's vector environments keep it whole (an
+    object per sub-environment under ``infos["episode_metrics"]``) instead of stacking each
+    metric into a typed array, which fails when a step count meets ``None`` (a target not
+    reached).
+    """
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: Mapping[str, Any]):
+        self._values = dict(values)
+
+    def __getitem__(self, name: str) -> Any:
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __repr__(self) -> str:
+        return f"EpisodeMetrics({self._values!r})"
+
+    def __reduce__(self):  # type: ignore[no-untyped-def]
+        return EpisodeMetrics, (self._values,)
+
+
+def _layout_seed(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= _MAX_LAYOUT_SEED:
+        raise ConfigError(f"{name} = {value!r} must be an integer in [0, 2**63 - 1]", "layout_seed")
+    return int(value)
+
+
+def check_layout_seeds(value: Any) -> Sequence[int] | None:
+    """Validated layout seeds (a :class:`~swiptopt.ConfigError` naming ``layout_seeds``
+    otherwise): a ``range`` as it is (never materialised), other sequences as an int64 array."""
+    if value is None:
+        return None
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise ConfigError(
+            f"layout_seeds = {value!r} must be a sequence of layout seeds, e.g. range(0, 1000)", "layout_seeds"
+        )
+    if len(value) == 0:
+        raise ConfigError("layout_seeds is empty: give at least one layout seed", "layout_seeds")
+    if isinstance(value, range):
+        if min(value[0], value[-1]) < 0 or max(value[0], value[-1]) > _MAX_LAYOUT_SEED:
+            raise ConfigError(f"layout_seeds = {value!r} must hold integers in [0, 2**63 - 1]", "layout_seeds")
+        return value
+    return np.array([_layout_seed(v, "layout_seeds[...]") for v in value], dtype=np.int64)
 
 
 class AuvSwiptEnv(gym.Env):
@@ -64,24 +138,48 @@ class AuvSwiptEnv(gym.Env):
     ## Episode End
 
     Terminated when every node is served (its data delivered and, for Gamma < 1, its storage
-    full) or the AUV's battery is spent; truncated after ``episode_steps`` steps. The last
-    step's ``info["episode"]`` holds the episode's metrics (:mod:`swiptopt.metrics`).
+    full) or the AUV's battery is spent; truncated after ``episode_steps`` steps, which
+    ``spec.max_episode_steps`` reports (the env truncates itself: ``gymnasium.make`` adds no
+    ``TimeLimit``). The last step's ``info["episode_metrics"]`` (:data:`INFO_KEY`) holds the
+    episode's metrics (:class:`EpisodeMetrics`, see :mod:`swiptopt.metrics`); standard
+    wrappers (``Monitor``, ``RecordEpisodeStatistics``, ``TimeLimit``, ``FlattenObservation``,
+    vector environments) pass it through. When a wrapper ends the episode first (a shorter
+    ``TimeLimit``), :meth:`episode_metrics` of the unwrapped env gives the metrics so far;
+    :func:`swiptopt.evaluate` reads them from there.
+
+    ## Layouts
+
+    By default every episode uses the scenario's layout (``layout_seed``). With
+    ``layout_seeds=range(0, 1000)`` each reset draws one of them from the env's
+    ``np_random``; ``reset(options={"layout_seed": k})`` sets episode's layout directly
+    (and draws nothing). The reset's ``info["layout_seed"]`` says which layout the episode
+    runs on, and ``env.scenario`` is that layout's scenario. A new layout rebuilds only the
+    layout's part of the kernel tables (:func:`swiptopt.kernel.with_layout`); the grid, the
+    moves and the spaces stay, and the last :data:`LAYOUT_CACHE_SIZE` layouts stay built.
+    Other reset options are errors.
 
     ## Arguments
 
     ``AuvSwiptEnv(scenario=None, *, preset="paper", observation="tabular",
-    render_mode=None, backend="auto", **overrides)``: a :class:`~swiptopt.Scenario`, or a
-    preset name with :class:`~swiptopt.Scenario` field overrides (``n_nodes=50``,
-    ``layout_seed=3``, ``split_ratio=0.3``, ...). ``backend`` chooses the compiled (numba) or
-    the Python kernel; both give identical episodes. ``render_mode``: ``"ansi"`` (a text
-    summary) or ``"rgb_array"`` (a top view and a depth view).
+    render_mode=None, backend="auto", layout_seeds=None, **overrides)``: a
+    :class:`~swiptopt.Scenario`, or a preset name with :class:`~swiptopt.Scenario` field
+    overrides (``n_nodes=50``, ``layout_seed=3``, ``split_ratio=0.3``, ...). ``backend``
+    chooses the compiled (numba) or the Python kernel; both give identical episodes.
+    ``render_mode``: ``"ansi"`` (a text summary) or ``"rgb_array"`` (a top view and a depth
+    view). ``layout_seeds``: the layouts to draw one from at each reset (see Layouts).
 
     ## Version History
 
+    - v1: the episode's metrics moved from ``info["episode"]`` (which Gymnasium's
+      ``RecordEpisodeStatistics`` and SB3's ``Monitor`` own) to ``info["episode_metrics"]``;
+      a layout per episode (``layout_seeds``, ``reset(options={"layout_seed": k})``);
+      unknown reset options are errors; ``spec.max_episode_steps`` is the scenario's
+      ``episode_steps``; the reset's info holds ``layout_seed``.
     - v0: initial version.
     """
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
+    _spec: EnvSpec | None = None
 
     def __init__(
         self,
@@ -91,6 +189,7 @@ class AuvSwiptEnv(gym.Env):
         observation: str = "tabular",
         render_mode: str | None = None,
         backend: str = "auto",
+        layout_seeds: Sequence[int] | None = None,
         **overrides: Any,
     ):
         if scenario is None:
@@ -103,10 +202,13 @@ class AuvSwiptEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        self.layout_seeds = check_layout_seeds(layout_seeds)
         self.scenario = scenario
+        self._scenario0 = scenario  # the layouts of other episodes are variations of it
         self.observation = observation
         self.render_mode = render_mode
         self.tables = K.build_tables(scenario)
+        self._layouts = OrderedDict([(scenario.layout_seed, (scenario, self.tables))])
         if backend == "auto":
             backend = "compiled" if numba_available() else "python"
         self.backend = backend
@@ -125,25 +227,85 @@ class AuvSwiptEnv(gym.Env):
             self.observation_space = spaces.Discrete(cells * (K.TABULAR_COUNT_CAP + 1))
         else:
             self.observation_space = spaces.Box(-1.0, 1.0, (4 + K.VECTOR_NODE_FEATURES * n,), dtype=np.float32)
-            extent = scenario.extent_m
             self._obs = np.empty(self.observation_space.shape, dtype=np.float32)
-            # what the kernel's vector_observation reads besides the state, and its output
-            self._obs_args = (
-                self.tables.data0,
-                np.ascontiguousarray(scenario.cell_centers_m / extent),
-                np.ascontiguousarray(scenario.layout.positions_m / extent),
-                self._obs,
-            )
+            self._cells_norm = np.ascontiguousarray(scenario.cell_centers_m / scenario.extent_m)
+            self._set_layout_features()
         self._uniforms, self._normals = K.noise_buffers(self.tables)
         self._vector = observation == "vector"
         self._done = True  # until the first reset
         self.state: K.EpisodeState | None = None
         self.path: list[int] = []
 
+    def _set_layout_features(self) -> None:
+        """What the kernel's vector observation reads besides the state (the layout's initial
+        data and node positions over the extent) and its output array."""
+        s = self.scenario
+        self._obs_args = (
+            self.tables.data0,
+            self._cells_norm,
+            np.ascontiguousarray(s.layout.positions_m / s.extent_m),
+            self._obs,
+        )
+
+    # ----------------------------------------------------------------- spec
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registration spec (set by ``gymnasium.make``), its ``max_episode_steps`` the
+        scenario's ``episode_steps``."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        # gymnasium.make sets the spec after construction, without an episode length: the
+        # scenario knows it (the env truncates itself, so no TimeLimit is needed)
+        if value is not None and value.max_episode_steps is None:
+            value = dataclasses.replace(value, max_episode_steps=self.scenario.episode_steps)
+        self._spec = value
+
+    # ----------------------------------------------------------------- layouts
+
+    def _episode_layout_seed(self, options: Mapping[str, Any] | None) -> int:
+        if options:
+            if not isinstance(options, Mapping):
+                raise ConfigError(f"reset options must be a dict, got {options!r}", "options")
+            unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+            if unknown:
+                raise ConfigError(
+                    f"unknown reset option {unknown[0]!r}: allowed options are {list(RESET_OPTIONS)}", "options"
+                )
+            if "layout_seed" in options:
+                return _layout_seed(options["layout_seed"], "options['layout_seed']")
+        if self.layout_seeds is not None:
+            return int(self.layout_seeds[int(self.np_random.integers(len(self.layout_seeds)))])
+        return self._scenario0.layout_seed
+
+    def _use_layout(self, layout_seed: int) -> None:
+        """Switch to another layout of the same scenario, rebuilding only what it changes
+        (once for each of the last :data:`LAYOUT_CACHE_SIZE` layouts used)."""
+        built = self._layouts.pop(layout_seed, None)
+        if built is None:
+            scenario = self._scenario0.replace(layout_seed=layout_seed)
+            built = (scenario, K.with_layout(self.tables, scenario))
+        self._layouts[layout_seed] = built  # the most recently used last
+        if len(self._layouts) > LAYOUT_CACHE_SIZE:
+            self._layouts.popitem(last=False)
+        self.scenario, self.tables = built
+        if self._vector:
+            self._set_layout_features()
+        if self.state is not None:
+            self._args = K.step_args(self.tables, self.state)
+
     # ----------------------------------------------------------------- gym API
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode; ``options={"layout_seed": k}`` runs it on layout ``k`` (see
+        Layouts in the class docstring). Returns the observation and ``{"cell",
+        "layout_seed"}``."""
         super().reset(seed=seed)
+        layout_seed = self._episode_layout_seed(options)
+        if layout_seed != self.scenario.layout_seed:
+            self._use_layout(layout_seed)
         t = self.tables
         if self.state is None or seed is not None:
             # a seeded reset starts with fresh draws from the reseeded generator
@@ -171,7 +333,7 @@ class AuvSwiptEnv(gym.Env):
             )
         else:
             obs = self._vector_observation()
-        return obs, {"cell": self.state.cell}
+        return obs, {"cell": self.state.cell, "layout_seed": self.scenario.layout_seed}
 
     def step(self, action):
         if self._done:
@@ -191,8 +353,18 @@ class AuvSwiptEnv(gym.Env):
         info: dict[str, Any] = {"reward_parts": {"throughput": throughput, "harvest": harvest, "movement": movement}}
         if code:
             self._done = True
-            info["episode"] = episode_metrics(self.tables, self.state)
+            info[INFO_KEY] = self.episode_metrics()
         return obs, throughput + harvest + movement, code == K.TERMINATED, code == K.TRUNCATED, info
+
+    def episode_metrics(self) -> EpisodeMetrics:
+        """The metrics of the episode so far (at its end, those of ``info["episode_metrics"]``).
+
+        For an episode a wrapper ended early (a ``TimeLimit`` shorter than the scenario's
+        ``episode_steps``): call it on ``env.unwrapped`` before the next reset.
+        """
+        if self.state is None:
+            raise RuntimeError("call reset() before episode_metrics()")
+        return EpisodeMetrics(episode_metrics(self.tables, self.state))
 
     def _vector_observation(self) -> np.ndarray:
         """The vector observation of the current state (the kernel's, compiled or not)."""
@@ -218,7 +390,7 @@ class AuvSwiptEnv(gym.Env):
 
     def _render_text(self) -> str:
         s = self.scenario
-        m = episode_metrics(self.tables, self.state)
+        m = self.episode_metrics()
         cell = tuple(int(v) for v in s.cell_of_index(self.state.cell))
         covered = self.tables.covered(self.state.cell)
         lines = [

@@ -17,6 +17,7 @@ same episode bit for bit, whichever path runs it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -134,15 +135,6 @@ def build_tables(scenario: Scenario) -> Tables:
     prop_w[:, HOVER] += scenario.station_keeping_power_w
     propulsion_j = prop_w * dt
 
-    # Coverage: cone, range and mean SNR threshold from each free cell's centre, as the
-    # covered pairs only (memory grows with them, not with cells x nodes).
-    layout = scenario.layout
-    pairs = cell_coverage(scenario)
-    rows, nodes = pairs.rows, pairs.nodes
-    budget = link_budget(scenario, pairs.distance_m)
-    cov_ptr = np.zeros(n_cells + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rows, minlength=n_cells), out=cov_ptr[1:])
-
     refs = reward_references(scenario)
     power = auv_power(scenario)
     params = np.zeros(N_PARAMS)
@@ -169,33 +161,77 @@ def build_tables(scenario: Scenario) -> Tables:
     params[P_GATE_J] = scenario.energy_gate_j
     params[P_BATTERY_J] = scenario.battery_j
     params[P_STEPS] = scenario.episode_steps
-    # targets are fractions of what can be collected at all: nodes no cell covers never count
-    coverable = np.zeros(scenario.n_nodes, dtype=bool)
-    coverable[nodes] = True
-    params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits[coverable].sum()
-    params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j)[coverable].sum()
-    params[P_DRAW_UNIFORMS] = float(np.any(layout.failure_prob > 0))
     params[P_NORMAL_ROWS] = {"none": 0, "shadowing": 1, "rician": 2}[scenario.channel]
 
     return Tables(
         next_cell=next_cell,
         moved=moved,
         propulsion_j=propulsion_j,
-        cov_ptr=cov_ptr,
-        cov_node=nodes.astype(np.int64),
-        cov_snr=acoustics.db_to_linear(budget.snr_db),
-        cov_pav=np.asarray(budget.available_power_w, dtype=float),
-        data0=layout.data_bits.astype(float),
-        energy0=layout.initial_energy_j.astype(float),
-        capacity=layout.capacity_j.astype(float),
-        fail_prob=layout.failure_prob.astype(float),
-        params=params,
         start_cell=scenario.start_cell_index,
         n_cells=n_cells,
         n_nodes=scenario.n_nodes,
-        draws_uniforms=bool(params[P_DRAW_UNIFORMS]),
         normal_rows=int(params[P_NORMAL_ROWS]),
+        **layout_tables(scenario, params),
     )
+
+
+#: The fields of :class:`Tables` that depend on the node layout (positions, charges, failure
+#: probabilities); :func:`layout_tables` computes them.
+LAYOUT_FIELDS = (
+    "cov_ptr", "cov_node", "cov_snr", "cov_pav", "data0", "energy0", "capacity", "fail_prob", "params",
+    "draws_uniforms",
+)
+
+
+def layout_tables(scenario: Scenario, params: np.ndarray) -> dict:
+    """The layout-dependent fields of :class:`Tables` (:data:`LAYOUT_FIELDS`) for
+    ``scenario.layout``: the coverage of every cell, the per-node arrays, and a copy of
+    ``params`` with its layout-dependent entries (the data and energy targets, whether a step
+    draws link failures) set.
+
+    :func:`build_tables` calls it once; :func:`with_layout` calls it alone when only the layout
+    changes (the grid, the moves and their energies stay).
+    """
+    n_cells = scenario.n_cells
+    layout = scenario.layout
+    # Coverage: cone, range and mean SNR threshold from each free cell's centre, as the
+    # covered pairs only (memory grows with them, not with cells x nodes).
+    pairs = cell_coverage(scenario)
+    rows, nodes = pairs.rows, pairs.nodes
+    budget = link_budget(scenario, pairs.distance_m)
+    cov_ptr = np.zeros(n_cells + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n_cells), out=cov_ptr[1:])
+
+    params = params.copy()
+    # targets are fractions of what can be collected at all: nodes no cell covers never count
+    coverable = np.zeros(scenario.n_nodes, dtype=bool)
+    coverable[nodes] = True
+    params[P_DATA_TARGET] = scenario.target_fraction * layout.data_bits[coverable].sum()
+    params[P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j)[coverable].sum()
+    params[P_DRAW_UNIFORMS] = float(np.any(layout.failure_prob > 0))
+    return {
+        "cov_ptr": cov_ptr,
+        "cov_node": nodes.astype(np.int64),
+        "cov_snr": acoustics.db_to_linear(budget.snr_db),
+        "cov_pav": np.asarray(budget.available_power_w, dtype=float),
+        "data0": layout.data_bits.astype(float),
+        "energy0": layout.initial_energy_j.astype(float),
+        "capacity": layout.capacity_j.astype(float),
+        "fail_prob": layout.failure_prob.astype(float),
+        "params": params,
+        "draws_uniforms": bool(params[P_DRAW_UNIFORMS]),
+    }
+
+
+def with_layout(tables: Tables, scenario: Scenario) -> Tables:
+    """``tables`` for ``scenario``'s layout, rebuilding only :data:`LAYOUT_FIELDS`.
+
+    ``scenario`` must differ from the one ``tables`` were built for only in its layout
+    (``layout_seed`` or ``node_positions_m``, with the same ``n_nodes``).
+    """
+    if scenario.n_nodes != tables.n_nodes:
+        raise ValueError(f"with_layout keeps n_nodes = {tables.n_nodes}, got a scenario with {scenario.n_nodes}")
+    return dataclasses.replace(tables, **layout_tables(scenario, tables.params))
 
 
 @dataclass(eq=False)

@@ -13,7 +13,7 @@ import numpy as np
 
 from swiptopt import kernel as K
 
-#: Metric names of ``info["episode"]``, in table order.
+#: Metric names of ``info["episode_metrics"]``, in table order.
 EPISODE_METRICS = (
     "return",
     "data_bits",

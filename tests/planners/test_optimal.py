@@ -2,7 +2,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import swiptopt  # noqa: F401  (registers the environment)
+import swiptopt
 from planners.bounds import exact_optimum, upper_bound
 from planners.optimal import MilpBudget, MilpPlanner, resolve_budget, solve_optimum
 from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner
@@ -19,7 +19,7 @@ QUICK = resolve_budget("quick")
 
 def replay(scenario, actions):
     """The return of an action sequence in the registered environment."""
-    env = gym.make("swiptopt/AuvSwipt-v0", scenario=scenario)
+    env = gym.make(swiptopt.ENV_ID, scenario=scenario)
     env.reset(seed=0)
     total = 0.0
     for a in actions:

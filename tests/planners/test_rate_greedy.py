@@ -23,7 +23,7 @@ def run(policy, env, seed=0):
         obs, r, terminated, truncated, info = env.step(a)
         total += r
         if terminated or truncated:
-            return actions, total, info["episode"]
+            return actions, total, info["episode_metrics"]
 
 
 @pytest.mark.parametrize("layout", [0, 3])

@@ -1,4 +1,8 @@
+import copy
+import dataclasses
 import math
+import pickle
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -42,7 +46,7 @@ def rollout(env, seed, actions):
     trace = [obs]
     for a in actions:
         obs, r, term, trunc, info = env.step(a)
-        trace.append((np.asarray(obs).tobytes(), r, term, trunc, info["reward_parts"], info.get("episode")))
+        trace.append((np.asarray(obs).tobytes(), r, term, trunc, info["reward_parts"], info.get("episode_metrics")))
         if term or trunc:
             obs, _ = env.reset()
             trace.append(obs)
@@ -99,7 +103,7 @@ def test_invariants_over_random_rollouts(preset, overrides):
                 assert s.cell == cell
             assert not env.scenario.blocked_cells[s.cell]
             if term or trunc:
-                m = info["episode"]
+                m = info["episode_metrics"]
                 assert set(EPISODE_METRICS) <= set(m)
                 assert m["data_bits"] == pytest.approx(s.collected.sum())
                 assert m["auv_energy_j"] == pytest.approx(m["auv_propulsion_j"] + m["auv_hotel_j"] + m["auv_projector_j"])
@@ -206,7 +210,7 @@ def test_episode_end_metrics_and_target_steps():
     for _ in range(3):
         _, _, term, trunc, info = env.step(K.HOVER)
     assert trunc and not term
-    m = info["episode"]
+    m = info["episode_metrics"]
     assert m["steps_to_data_target"] == 1  # all data in the first step
     assert m["steps_to_energy_target"] is None  # half the free storage takes more steps
     assert m["length"] == 3 and m["mission_time_s"] == pytest.approx(20.0)
@@ -280,3 +284,151 @@ def test_served_mask_is_is_served_for_every_node():
     for gamma in (0.0, 0.5, 1.0):
         expected = [bool(K.is_served(data_left, energy, capacity, gamma, i)) for i in range(n)]
         assert K.served_mask(data_left, energy, capacity, gamma).tolist() == expected
+
+
+# ----------------------------------------------------------------- v1: wrappers, spec, layouts
+
+
+@pytest.mark.parametrize("observation", ["tabular", "vector"])
+@pytest.mark.parametrize("layout_seeds", [None, range(0, 40)])
+def test_both_env_checkers_pass(observation, layout_seeds):
+    sb3_check_env = pytest.importorskip("stable_baselines3.common.env_checker").check_env
+    env = gym.make(swiptopt.ENV_ID, preset="paper", n_nodes=8, observation=observation, layout_seeds=layout_seeds)
+    check_env(env.unwrapped)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # SB3's checker only warns: any warning fails the test
+        sb3_check_env(env.unwrapped, warn=True)
+
+
+def test_spec_tells_the_episode_length():
+    assert gym.make(swiptopt.ENV_ID, preset="tiny").spec.max_episode_steps == 8
+    assert gym.make(swiptopt.ENV_ID, preset="paper", episode_steps=70).spec.max_episode_steps == 70
+    limited = gym.make(swiptopt.ENV_ID, preset="paper", max_episode_steps=20)
+    assert limited.spec.max_episode_steps == 20
+    limited.reset(seed=0)
+    for t in range(1, 21):
+        _, _, term, trunc, info = limited.step(K.HOVER)
+        assert trunc == (t == 20) and not term
+    # the TimeLimit ended it, not the env: the metrics are the unwrapped env's
+    assert "episode_metrics" not in info
+    assert limited.unwrapped.episode_metrics()["length"] == 20
+    # no TimeLimit of our own: the env truncates itself
+    wrappers = []
+    env = gym.make(swiptopt.ENV_ID, preset="tiny")
+    while env is not env.unwrapped:
+        wrappers.append(type(env).__name__)
+        env = env.env
+    assert "TimeLimit" not in wrappers
+
+
+def test_metrics_key_survives_the_standard_wrappers():
+    from gymnasium.wrappers import FlattenObservation, RecordEpisodeStatistics
+
+    env = RecordEpisodeStatistics(FlattenObservation(gym.make(swiptopt.ENV_ID, preset="tiny")))
+    env.reset(seed=0)
+    while True:
+        _, _, term, trunc, info = env.step(K.HOVER)
+        if term or trunc:
+            break
+    assert info["episode"]["l"] == info["episode_metrics"]["length"] == 8
+    assert info["episode"]["r"] == pytest.approx(info["episode_metrics"]["return"])
+    m = info["episode_metrics"]
+    assert dict(m) == m and set(EPISODE_METRICS) <= set(m)
+    assert pickle.loads(pickle.dumps(m)) == m and copy.deepcopy(m) == m
+    with pytest.raises(TypeError):
+        m["return"] = 0.0  # read-only
+
+
+def test_gymnasium_vector_env_keeps_metrics_whole():
+    # two sub-envs end at once with different kinds of values (a step count and None):
+    # stacking them per metric would fail; the mapping stays one object per sub-env
+    envs = gym.vector.SyncVectorEnv([lambda: AuvSwiptEnv(preset="tiny"), lambda: AuvSwiptEnv(preset="tiny", data_bits=1e12)])
+    envs.reset(seed=0)
+    for _ in range(8):
+        _, _, term, trunc, infos = envs.step(np.full(2, K.HOVER))
+    assert np.all(term | trunc) and infos["_episode_metrics"].all()
+    values = [infos["episode_metrics"][k]["steps_to_data_target"] for k in range(2)]
+    assert values == [1, None]
+
+
+def _trace(env, seed, options, actions):
+    obs, info = env.reset(seed=seed, options=options)
+    trace = [np.asarray(obs).tobytes(), info]
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        trace.append((np.asarray(obs).tobytes(), r, term, trunc, info.get("episode_metrics")))
+        if term or trunc:
+            break
+    return repr(trace)
+
+
+@pytest.mark.parametrize("observation", ["tabular", "vector"])
+def test_a_layout_chosen_at_reset_is_that_layout(observation):
+    actions = np.random.default_rng(2).integers(0, 7, 60)
+    env = AuvSwiptEnv(preset="paper", n_nodes=12, observation=observation)
+    space = env.observation_space
+    for k in (5, 9, 0, 5):
+        fixed = AuvSwiptEnv(preset="paper", n_nodes=12, observation=observation, layout_seed=k)
+        assert _trace(env, 3, {"layout_seed": k}, actions) == _trace(fixed, 3, None, actions)
+        assert env.scenario == fixed.scenario and env.observation_space == space
+        rebuilt = K.build_tables(fixed.scenario)
+        for f in dataclasses.fields(K.Tables):
+            np.testing.assert_array_equal(getattr(env.tables, f.name), getattr(rebuilt, f.name), err_msg=f.name)
+    # without options an episode runs on the scenario's own layout again
+    assert _trace(env, 3, None, actions) == _trace(AuvSwiptEnv(preset="paper", n_nodes=12, observation=observation), 3, None, actions)
+
+
+def test_layouts_drawn_per_episode():
+    env = AuvSwiptEnv(preset="paper", n_nodes=6, layout_seeds=[11, 12, 13, 14])
+    drawn = [env.reset(seed=s)[1]["layout_seed"] for s in range(40)]
+    assert set(drawn) == {11, 12, 13, 14}
+    assert drawn == [env.reset(seed=s)[1]["layout_seed"] for s in range(40)]  # seeded: reproducible
+    assert env.reset(seed=0, options={"layout_seed": 99})[1]["layout_seed"] == 99  # an option wins
+    unseeded = {env.reset()[1]["layout_seed"] for _ in range(40)}
+    assert unseeded == {11, 12, 13, 14}
+    positions = {env.reset(options={"layout_seed": k})[1]["layout_seed"]: env.scenario.layout.positions_m.copy() for k in (11, 12)}
+    assert not np.allclose(positions[11], positions[12])
+    huge = AuvSwiptEnv(preset="tiny", layout_seeds=range(10**12, 2 * 10**12, 7))  # never materialised
+    seed = huge.reset(seed=0)[1]["layout_seed"]
+    assert 10**12 <= seed < 2 * 10**12 and (seed - 10**12) % 7 == 0
+
+
+def test_an_unused_layout_path_rebuilds_nothing():
+    env = AuvSwiptEnv(preset="paper", n_nodes=6)
+    env.reset(seed=0)
+    tables, scenario = env.tables, env.scenario
+    env.reset(seed=1)
+    env.reset(options={"layout_seed": scenario.layout_seed})
+    assert env.tables is tables and env.scenario is scenario
+
+
+def test_bad_reset_options_and_layout_seeds():
+    env = AuvSwiptEnv(preset="tiny")
+    with pytest.raises(swiptopt.ConfigError, match=r"unknown reset option 'layout'.*\['layout_seed'\]"):
+        env.reset(options={"layout": 3})
+    for bad in (-1, 2.5, "3", True, 2**63):
+        with pytest.raises(swiptopt.ConfigError, match="layout_seed"):
+            env.reset(options={"layout_seed": bad})
+    for bad in ([], "0123", [1, -2], {"a": 1}, 5, range(-3, 2)):
+        with pytest.raises(swiptopt.ConfigError, match="layout_seeds"):
+            AuvSwiptEnv(preset="tiny", layout_seeds=bad)
+    assert env.reset(options={})[1]["layout_seed"] == 0
+
+
+def test_recent_layouts_stay_built():
+    from swiptopt.env import LAYOUT_CACHE_SIZE
+
+    env = AuvSwiptEnv(preset="tiny", layout_seeds=range(3))
+    built = {}
+    for s in range(30):
+        _, info = env.reset(seed=s)
+        assert env.tables is built.setdefault(info["layout_seed"], env.tables)  # built once each
+    first = env.reset(options={"layout_seed": 100})[0] is not None and env.tables
+    for k in range(101, 101 + LAYOUT_CACHE_SIZE):
+        env.reset(options={"layout_seed": k})
+    recent = env.tables
+    env.reset(options={"layout_seed": 100})  # dropped: built again, the same
+    assert env.tables is not first
+    np.testing.assert_array_equal(env.tables.cov_node, first.cov_node)
+    env.reset(options={"layout_seed": 100 + LAYOUT_CACHE_SIZE})
+    assert env.tables is recent

@@ -1,0 +1,389 @@
+"""Deep-RL contenders: Stable-Baselines3's PPO and DQN on the ``vector`` observation.
+
+One entry point trains either (:func:`train_deep`); models are saved in SB3's own ``.zip``
+format and loaded back (:func:`load_deep`); :func:`deep_config_hash` names a training
+configuration, so that :func:`train_or_load_deep` (and the benchmark) reuse a stored model
+whose configuration matches instead of training it again.
+
+Reproducible on the CPU: the same configuration gives the same trained model, bit for bit,
+on any run. :func:`pin_torch` runs torch on one thread (intra- and inter-op) with
+deterministic algorithms, the device is always ``"cpu"``, SB3 seeds its generators from the
+configuration's seed, and the environment's generator is seeded from it at the first reset.
+SB3's seeding also sets Python's ``random``, NumPy's global generator and torch's global
+seed (SB3 draws from them): a side effect of training with SB3, not of this project.
+
+Stable-Baselines3 and torch (the ``deeprl`` extra) load inside the functions that use them:
+``import rl`` does not import them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import inspect
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from swiptopt import ENV_ID
+from swiptopt.env import INFO_KEY, AuvSwiptEnv, check_layout_seeds
+from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.scenario import Scenario
+
+#: The algorithms :func:`train_deep` trains, by name, with their SB3 class.
+DEEP_ALGORITHMS = {"dqn": "DQN", "ppo": "PPO"}
+
+#: SB3 constructor arguments :func:`train_deep` sets itself (never through ``hyperparams``).
+_RESERVED = ("policy", "env", "seed", "device", "policy_kwargs", "verbose", "tensorboard_log", "_init_setup_model")
+
+#: The observation the deep agents act on.
+OBSERVATION = "vector"
+
+
+def _algorithm_class(algorithm: str) -> type:
+    try:
+        import stable_baselines3
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise ConfigError(
+            "deep RL needs Stable-Baselines3: pip install 'swiptopt[deeprl]'", "algorithm"
+        ) from None
+    return getattr(stable_baselines3, DEEP_ALGORITHMS[algorithm])
+
+
+def _check_int(name: str, value: Any, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ConfigError(f"{name} = {value!r} must be an integer >= {low}", name)
+    return int(value)
+
+
+@dataclass(frozen=True)
+class DeepConfig:
+    """One deep-RL training run, validated at construction."""
+
+    algorithm: str
+    """``"ppo"`` or ``"dqn"`` (:data:`DEEP_ALGORITHMS`)."""
+    timesteps: int
+    """Environment steps of training."""
+    seed: int = 0
+    """Seeds SB3 (network initialisation, sampling, exploration) and the environment."""
+    hyperparams: Mapping[str, Any] = field(default_factory=dict)
+    """SB3 constructor arguments (``learning_rate``, ``n_steps``, ``buffer_size``, ...);
+    unset ones keep SB3's defaults."""
+    policy_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """SB3's ``policy_kwargs`` (e.g. ``{"net_arch": [64, 64]}``)."""
+    layout_seeds: range | tuple[int, ...] | None = None
+    """Train across these layouts, one drawn per episode; ``None``: the scenario's layout. A
+    ``range`` stays a range (it names its layouts by start, stop and step)."""
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in DEEP_ALGORITHMS:
+            raise ConfigError(
+                f"unknown deep-RL algorithm {self.algorithm!r}{did_you_mean(self.algorithm, DEEP_ALGORITHMS)}: "
+                f"choose one of {sorted(DEEP_ALGORITHMS)}",
+                "algorithm",
+            )
+        object.__setattr__(self, "timesteps", _check_int("timesteps", self.timesteps, 1))
+        object.__setattr__(self, "seed", _check_int("seed", self.seed, 0))
+        for name in ("hyperparams", "policy_kwargs"):
+            value = getattr(self, name)
+            if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
+                raise ConfigError(f"{name} = {value!r} must be a mapping of argument names to values", name)
+            object.__setattr__(self, name, dict(value))
+        seeds = check_layout_seeds(self.layout_seeds)
+        if seeds is not None and not isinstance(seeds, range):
+            seeds = tuple(int(s) for s in seeds)
+        object.__setattr__(self, "layout_seeds", seeds)
+
+    def check_hyperparams(self) -> None:
+        """Unknown SB3 arguments are errors naming the allowed ones (imports SB3)."""
+        cls = _algorithm_class(self.algorithm)
+        allowed = sorted(set(inspect.signature(cls.__init__).parameters) - {"self", *_RESERVED})
+        for key in self.hyperparams:
+            if key in _RESERVED:
+                raise ConfigError(
+                    f"{self.algorithm} setting {key!r} is not a hyperparameter: train_deep sets it itself "
+                    "(seed and policy_kwargs are its own arguments; the device is the CPU)",
+                    "hyperparams",
+                )
+            if key not in allowed:
+                raise ConfigError(
+                    f"unknown {self.algorithm} setting {key!r}{did_you_mean(key, allowed)}: allowed settings are "
+                    f"{', '.join(allowed)}",
+                    "hyperparams",
+                )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "algorithm": self.algorithm,
+            "timesteps": self.timesteps,
+            "seed": self.seed,
+            "hyperparams": dict(self.hyperparams),
+            "policy_kwargs": dict(self.policy_kwargs),
+            "layout_seeds": _layout_seeds_dict(self.layout_seeds),
+        }
+
+
+def _layout_seeds_dict(seeds: range | tuple[int, ...] | None) -> Any:
+    if isinstance(seeds, range):
+        return {"start": seeds.start, "stop": seeds.stop, "step": seeds.step}
+    return None if seeds is None else list(seeds)
+
+
+@dataclass(frozen=True, eq=False)
+class DeepResult:
+    """A trained (or loaded) deep-RL model with what produced it.
+
+    ``model`` is the SB3 model; it is a policy for :func:`swiptopt.evaluate`
+    (``model.predict(obs, deterministic=True)``). ``episode_returns`` are the returns of the
+    training episodes in order (empty for a loaded model); ``train_seconds`` the wall-clock
+    training time (informative only: nothing depends on it).
+    """
+
+    model: Any
+    config: DeepConfig
+    config_hash: str | None
+    """:func:`deep_config_hash` of the run; ``None`` when trained on an environment given
+    as such (its configuration is not known)."""
+    train_seconds: float
+    episode_returns: np.ndarray
+    loaded: bool = False
+    """Whether the model was loaded from a stored file instead of trained."""
+
+    def predict(self, obs: Any, deterministic: bool = True) -> Any:
+        """The model's ``predict``, so a result is a policy itself."""
+        return self.model.predict(obs, deterministic=deterministic)
+
+
+def pin_torch() -> None:
+    """One torch thread (intra- and inter-op) and deterministic algorithms, for this process.
+
+    Training and acting are then bit-reproducible on the CPU, and a worker process uses one
+    core. torch allows setting the inter-op thread count only before its first parallel
+    work; if that has happened, the count is left as it is (it does not change results).
+    """
+    import torch
+
+    torch.set_num_threads(1)
+    try:
+        torch.set_num_interop_threads(1)
+    except RuntimeError:
+        pass  # already set, or parallel work already ran in this process
+    torch.use_deterministic_algorithms(True)
+
+
+def _versions() -> dict[str, str]:
+    out = {}
+    for package in ("stable_baselines3", "torch", "gymnasium"):
+        try:
+            out[package] = version(package)
+        except PackageNotFoundError:  # pragma: no cover - depends on the installation
+            out[package] = "absent"
+    return out
+
+
+def _canonical(value: Any) -> Any:
+    """A JSON-able form of settings values (classes by qualified name, arrays as lists)."""
+    if isinstance(value, type) or callable(value):
+        return f"{getattr(value, '__module__', '')}.{getattr(value, '__qualname__', repr(value))}"
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"cannot hash a setting of type {type(value).__name__}: {value!r}")
+
+
+def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
+    """A hex SHA-256 naming a training run: the configuration (algorithm, timesteps, seed,
+    settings, layouts), the scenario, the observation, the environment's id and version, and
+    the versions of Stable-Baselines3, torch and Gymnasium. Equal hashes mean the same
+    trained model."""
+    payload = {
+        "config": config.to_dict(),
+        "scenario": scenario.to_dict(),
+        "observation": OBSERVATION,
+        "env": ENV_ID,
+        "versions": _versions(),
+    }
+    text = json.dumps(payload, sort_keys=True, default=_canonical, allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _episode_log_callback() -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class EpisodeLog(BaseCallback):
+        """Collects the return of every training episode as it ends."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.returns: list[float] = []
+
+        def _on_step(self) -> bool:
+            for info, done in zip(self.locals["infos"], self.locals["dones"]):
+                if done:
+                    ours, monitor = info.get(INFO_KEY), info.get("episode")
+                    if ours is not None:
+                        self.returns.append(float(ours["return"]))
+                    elif monitor is not None:  # another env under SB3's Monitor
+                        self.returns.append(float(monitor["r"]))
+                    else:
+                        self.returns.append(math.nan)
+            return True
+
+    return EpisodeLog()
+
+
+def _training_env(scenario_or_env: Any, config: DeepConfig) -> tuple[Any, Scenario | None]:
+    """The environment to train on, and the scenario it was built from (if it was)."""
+    if isinstance(scenario_or_env, Scenario):
+        env = AuvSwiptEnv(scenario_or_env, observation=OBSERVATION, layout_seeds=config.layout_seeds)
+        return env, scenario_or_env
+    if config.layout_seeds is not None:
+        raise ConfigError(
+            "layout_seeds apply when training on a Scenario; an environment given as such keeps its own layouts",
+            "layout_seeds",
+        )
+    if not hasattr(scenario_or_env, "observation_space") or not hasattr(scenario_or_env, "step"):
+        raise ConfigError(
+            f"train_deep trains on a Scenario or a Gymnasium environment, got {type(scenario_or_env).__name__}", "env"
+        )
+    from gymnasium import spaces
+
+    if not isinstance(scenario_or_env.observation_space, spaces.Box):
+        raise ConfigError(
+            f"{config.algorithm} acts on a vector observation (a Box), got {scenario_or_env.observation_space}: "
+            "make the env with observation='vector'",
+            "observation",
+        )
+    return scenario_or_env, None
+
+
+def train_deep(
+    algorithm: str,
+    scenario_or_env: Scenario | Any,
+    timesteps: int,
+    seed: int = 0,
+    *,
+    hyperparams: Mapping[str, Any] | None = None,
+    policy_kwargs: Mapping[str, Any] | None = None,
+    layout_seeds: Sequence[int] | None = None,
+) -> DeepResult:
+    """Train ``algorithm`` (``"ppo"``, ``"dqn"``) for ``timesteps`` environment steps.
+
+    On a :class:`~swiptopt.Scenario`: an :class:`~swiptopt.env.AuvSwiptEnv` with the vector
+    observation, on the scenario's layout or, with ``layout_seeds``, on one of those drawn
+    per episode (a policy for many layouts). On a Gymnasium environment: that environment as
+    it is (any with a Box observation; the benchmarks train on CartPole this way).
+    ``hyperparams`` are SB3 constructor arguments, ``policy_kwargs`` SB3's. The same
+    arguments give the same model, bit for bit (see the module docstring).
+    """
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
+    config.check_hyperparams()
+    env, scenario = _training_env(scenario_or_env, config)
+    pin_torch()
+    cls = _algorithm_class(config.algorithm)
+    try:
+        model = cls(
+            "MlpPolicy",
+            env,
+            seed=config.seed,
+            device="cpu",
+            policy_kwargs=dict(config.policy_kwargs) or None,
+            verbose=0,
+            **config.hyperparams,
+        )
+    except (TypeError, ValueError, AssertionError) as exc:
+        raise ConfigError(f"{config.algorithm} rejected its settings: {exc}", "hyperparams") from None
+    log = _episode_log_callback()
+    start = time.perf_counter()
+    model.learn(total_timesteps=config.timesteps, callback=log, progress_bar=False)
+    seconds = time.perf_counter() - start
+    return DeepResult(
+        model=model,
+        config=config,
+        config_hash=None if scenario is None else deep_config_hash(config, scenario),
+        train_seconds=seconds,
+        episode_returns=np.asarray(log.returns, dtype=float),
+    )
+
+
+def save_deep(result: DeepResult | Any, path: str | Path) -> Path:
+    """Save a model (or a :class:`DeepResult`'s) in SB3's ``.zip`` format at ``path``.
+
+    Written to a temporary file beside it and renamed, so ``path`` is either absent or whole.
+    """
+    model = result.model if isinstance(result, DeepResult) else result
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            model.save(f)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def load_deep(path: str | Path, algorithm: str) -> Any:
+    """Load an SB3 model of ``algorithm`` saved by :func:`save_deep` (on the CPU).
+
+    A missing file or one that is not a saved ``algorithm`` model is a
+    :class:`~swiptopt.ConfigError` naming the path.
+    """
+    if algorithm not in DEEP_ALGORITHMS:
+        raise ConfigError(
+            f"unknown deep-RL algorithm {algorithm!r}: choose one of {sorted(DEEP_ALGORITHMS)}", "algorithm"
+        )
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"no saved model at {path}", "path")
+    cls = _algorithm_class(algorithm)
+    pin_torch()
+    try:
+        return cls.load(path, device="cpu")
+    except Exception as exc:  # SB3 raises many types for a corrupt or foreign file
+        raise ConfigError(f"{path} is not a saved {algorithm} model: {type(exc).__name__}: {exc}", "path") from None
+
+
+def train_or_load_deep(
+    directory: str | Path,
+    algorithm: str,
+    scenario: Scenario,
+    timesteps: int,
+    seed: int = 0,
+    *,
+    hyperparams: Mapping[str, Any] | None = None,
+    policy_kwargs: Mapping[str, Any] | None = None,
+    layout_seeds: Sequence[int] | None = None,
+) -> DeepResult:
+    """:func:`train_deep`, reusing ``directory/<algorithm>-<hash>.zip`` when it exists.
+
+    The file is named by :func:`deep_config_hash`, so a stored model is reused only for the
+    very configuration (and library versions) it was trained with; a new one is saved there.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
+    key = deep_config_hash(config, scenario)
+    path = Path(directory) / f"{algorithm}-{key}.zip"
+    if path.is_file():
+        return DeepResult(load_deep(path, algorithm), config, key, 0.0, np.zeros(0), loaded=True)
+    result = train_deep(
+        algorithm,
+        scenario,
+        timesteps,
+        seed,
+        hyperparams=hyperparams,
+        policy_kwargs=policy_kwargs,
+        layout_seeds=layout_seeds,
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_deep(result, path)
+    return dataclasses.replace(result, config_hash=key)
