@@ -2,6 +2,7 @@
 worker loses nothing, OMPL tasks are isolated and repeatable, workers die with their parent,
 and every executor prints the same table."""
 
+import faulthandler
 import os
 import signal
 import sqlite3
@@ -39,6 +40,7 @@ def crashing_run_task(task):
     the test's own: in pool workers and in fresh processes alike."""
     spare = os.environ.get("SWIPTOPT_TEST_SPARE_PID")
     if spare and os.getpid() != int(spare) and task["seed"] == BROKEN_SEED:
+        faulthandler.disable()  # a pool worker inherits pytest's handler: keep its dump off the log
         os.kill(os.getpid(), signal.SIGSEGV)
     return REAL_RUN_TASK(task)
 
