@@ -138,6 +138,13 @@ def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
 
 CHANNELS = ("none", "shadowing", "rician")
 HARVESTERS = ("linear", "logistic")
+#: Which signal carries the data (SPEC 3.2b): the AUV's, power-split at the node, or the
+#: node's own transmission to the AUV (the paper's eq. 13, SNR with the node's power P_i).
+LINKS = ("downlink_split", "uplink")
+
+#: Node transmitter electrical power that gives Table I's "170 dB re 1 uPa @ 1 m" (l. 459)
+#: at the default node efficiency 0.5: 10^((170 - 170.8) / 10) / 0.5 W (paper eq. 2).
+TABLE1_NODE_POWER_W = 1.6635
 
 
 # --------------------------------------------------------------------------- scenario
@@ -188,6 +195,19 @@ class Scenario:
     directivity_tx_db: float = _field(0.0, "dB", "projector directivity index", lo=0, hi=60)
     directivity_rx_db: float = _field(0.0, "dB", "node receiver directivity index", lo=0, hi=60)
     snr_threshold_db: float = _field(10.0, "dB", "minimum SNR for a link", lo=-50, hi=200)
+
+    # which signal carries the data (SPEC 3.2b)
+    link: str = _field(
+        "downlink_split", "", "data link: 'downlink_split' (the AUV's signal, split by alpha) or 'uplink' "
+        "(each node transmits with its own power, paid from its storage)", kind="str", choices=LINKS,
+    )
+    node_transmit_power_w: float = _field(
+        TABLE1_NODE_POWER_W, "W", "node transmitter electrical power P_i (uplink; default: 170 dB re 1 uPa @ 1 m)",
+        lo=0, lo_open=True, hi=1e5,
+    )
+    node_electroacoustic_efficiency: float = _field(0.5, "", "node transmitter efficiency (uplink)", lo=0, lo_open=True, hi=1)
+    node_circuit_power_w: float = _field(0.1, "W", "node circuit power while transmitting (uplink; Table I P_C)", lo=0, hi=1e4)
+    packet_bits: float = _field(800.0, "bit", "uplink packet size: data moves in whole packets (Table I: 100 bytes)", lo=1, hi=1e9)
 
     # SWIPT at the node (SPEC 3.2)
     sensitivity_db: float = _field(-170.0, "dB re 1 V/uPa", "hydrophone receive sensitivity", lo=-300, hi=0)
