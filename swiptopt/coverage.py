@@ -1,4 +1,4 @@
-"""Which nodes the AUV covers, and the paper's coverage-probability analysis (eqs. 19-21).
+"""Which nodes the AUV covers, and the paper's coverage-probability analysis (paper eqs. 24-25, l. 740-749).
 
 A node is covered from an AUV position when it lies below the AUV inside the downward cone
 (half-angle ``cone_half_angle_deg``), within ``cone_range_m`` of it, and its link SNR
@@ -268,7 +268,7 @@ def analytic_coverage_probability(
     *,
     rng: np.random.Generator | int | None = None,
 ) -> float:
-    """P(at least k of n uniform nodes covered from ``position_m``), binomial (paper eq. 21)."""
+    """P(at least k of n uniform nodes covered from ``position_m``), binomial (paper eq. 25, l. 748)."""
     return binomial_at_least(n_nodes, k, coverage_fraction(scenario, position_m, rng=rng).p)
 
 

@@ -130,7 +130,7 @@ class AuvSwiptEnv(gym.Env):
     ## Rewards
 
     ``r = Gamma bits / D_ref + (1 - Gamma) joules / E_ref - lambda E_move / E_move_ref``
-    (paper eq. 18, normalised), where only data still to deliver and energy still storable
+    (paper eq. 23, l. 703, normalised), where only data still to deliver and energy still storable
     count, so hovering over served nodes earns only the movement part. The three weighted
     parts are in ``info["reward_parts"]`` (``throughput``, ``harvest``, ``movement``) and sum
     to the reward.

@@ -72,7 +72,7 @@ def node_source_level_db(scenario: Scenario) -> float:
 def uplink_snr_offset_db(scenario: Scenario) -> float:
     """SNR of the node's transmission at the AUV minus the AUV's at the node, dB.
 
-    Both directions cross the same transmission loss and the same band noise (paper eqs. 1,
+    Both directions cross the same transmission loss and the same band noise (paper eqs. 3,
     13), and each transducer has one directivity for sending and receiving, so the
     difference is a constant: 10 log10(P_i eta_i / (P_elec eta_ea)). The kernel scales each
     pair's mean SNR by it, so the two directions share one table and one fading draw
