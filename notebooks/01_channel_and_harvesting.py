@@ -25,7 +25,7 @@
 # 2. Stojanovic's AN-optimal carrier frequency against distance;
 # 3. the power a node harvests against distance, for the linear and the logistic
 #    (Boshkovska) harvester;
-# 4. the paper's coverage analysis (eqs. 19-21): the probability of covering at
+# 4. the paper's coverage analysis (eqs. 24-25): the probability of covering at
 #    least k of n uniformly placed nodes, analytic (binomial) against simulated, as a
 #    function of the AUV's start position.
 #
@@ -234,7 +234,7 @@ else:
 # A node is covered when it lies inside the downward cone (half-angle 30°, range
 # limited by the cone and the SNR threshold). With n nodes uniform in the volume,
 # each is covered independently with p = V(cone ∩ volume) / V(volume), so the number
-# covered is binomial (paper eq. 21). `coverage_fraction` computes p in closed form
+# covered is binomial (paper eq. 25). `coverage_fraction` computes p in closed form
 # when only the depth clips the cone and by seeded Monte Carlo integration when the
 # side walls do; `simulated_coverage_probability` checks the whole chain by placing
 # nodes and testing cone, range and SNR directly.

@@ -36,6 +36,11 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
     """Bounds no policy can beat (SPEC 6): node caps, and per-step service for a
     deterministic channel.
 
+    With ``link = "uplink"`` the energy cap adds what sending every packet can cost a node
+    (each at the threshold rate: sending frees storage to be refilled), and a step's data
+    is bounded by the node's own rate for the whole step (alpha is 0 there, so the
+    harvest term is the whole received power's).
+
     ``tables``: the scenario's kernel tables when the caller has them (an environment's
     ``env.tables``), else built here.
     """
@@ -46,6 +51,14 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
     coverable[np.unique(t.cov_node)] = True
     data_cap = float(t.data0[coverable].sum())
     energy_cap = float((t.capacity - t.energy0)[coverable].sum())
+    uplink = scenario.link == "uplink"
+    if uplink:
+        # a node that sends frees storage to be refilled: at most every packet of its data,
+        # each at the slowest rate a link in service can have (SNR at the threshold)
+        slowest_bps = float(shannon_rate_bps(p[K.P_BW], p[K.P_SNR_TH]))
+        packets = np.ceil(t.data0[coverable] / p[K.P_PACKET_BITS])
+        packet_j = (p[K.P_NODE_TX_W] + p[K.P_NODE_CIRCUIT_W]) * p[K.P_PACKET_BITS] / slowest_bps
+        energy_cap += float(packets.sum() * packet_j)
     if scenario.idle_drain_w > 0:
         # a draining node can take energy again: its room is refilled by at most the drain
         energy_cap += float(coverable.sum() * p[K.P_DRAIN_J] * scenario.episode_steps)
@@ -53,7 +66,12 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
     if scenario.channel == "none":
         # the most any one step can deliver, from the best cell, ignoring every cap
         dt = p[K.P_DT]
-        bits = dt * shannon_rate_bps(p[K.P_BW], p[K.P_ALPHA] * t.cov_snr)
+        if uplink:
+            # a step carries at most the node's own rate for the whole step
+            up = t.cov_snr * p[K.P_UPLINK_SNR_GAIN]
+            bits = np.where(up >= p[K.P_SNR_TH], dt * shannon_rate_bps(p[K.P_BW], up), 0.0)
+        else:
+            bits = dt * shannon_rate_bps(p[K.P_BW], p[K.P_ALPHA] * t.cov_snr)
         joules = dt * harvest_from_input_array_w(
             (1 - p[K.P_ALPHA]) * t.cov_pav, p[K.P_LOGISTIC] == 1.0, p[K.P_ETA], p[K.P_LMAX], p[K.P_LA], p[K.P_LB]
         )

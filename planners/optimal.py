@@ -203,6 +203,11 @@ def solve_optimum(
 def _unsupported(scenario: Scenario, tables: K.Tables) -> str:
     """Why the model cannot express the scenario ('' when it can)."""
     p = tables.params
+    if scenario.link == "uplink":
+        return (
+            "link = 'uplink': a node's data depends on the energy it has stored when served, hence on "
+            "the order of service, which the per-cell step counts of the model cannot express"
+        )
     if scenario.idle_drain_w > 0:
         return f"idle_drain_w = {scenario.idle_drain_w:g}: a draining node's storage makes service depend on timing"
     if p[K.P_GATE_J] > 0 and np.any(tables.energy0 < p[K.P_GATE_J]):

@@ -147,7 +147,7 @@ def segment_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> np.ndarray:
     ``waypoints_m``: (k, 3); returns (k - 1,). The AUV holds ground speed ``speed_mps``
     along each segment (as the simulator kernel does), so it needs the water-relative
     speed ``|v u - c(depth)|`` (``auv.water_relative_speed_mps``), whose propulsion power
-    (paper eq. 15, ``auv.propulsion_power_w``) is averaged along the segment by 3-point
+    (paper eq. 18, ``auv.propulsion_power_w``) is averaged along the segment by 3-point
     Gauss-Legendre quadrature over depth; the move costs ``(P_mean + H) d / v`` (eq. 16,
     ``auv.move_energy_j``). With no current this is ``(P(v) + H) / v`` per metre.
     """
@@ -200,7 +200,7 @@ def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, flo
 
     numpy costs ~15 us per call and the planners ask for hundreds of thousands of motion
     costs, so this closure repeats the same quadrature on floats. Its constants come from
-    the shared functions: the cubic coefficient of eq. 15 is ``propulsion_power_w(1 m/s)``
+    the shared functions: the cubic coefficient of eq. 18 is ``propulsion_power_w(1 m/s)``
     and the current is the scenario's (linear in depth) at the surface and the bottom. A
     test pins it to :func:`segment_energy_j`.
     """

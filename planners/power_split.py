@@ -3,7 +3,7 @@
 Model (linear harvester, SPEC 3.2). A node whose link has SNR gamma (linear, before
 splitting) and available power P_av, served for t seconds with split ratio alpha, receives
 ``t B log2(1 + alpha gamma)`` bits and harvests ``t eta (1 - alpha) P_av`` joules. The value
-of a service is the reward's weighting (SPEC 4, paper eq. 18 without the movement term)::
+of a service is the reward's weighting (SPEC 4, paper eq. 23 without the movement term)::
 
     Gamma bits / D_ref + (1 - Gamma) joules / E_ref.
 

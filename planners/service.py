@@ -15,6 +15,15 @@ kernel's own physics functions:
   concave function of the total) this model over-estimates what a fixed walk earns on
   average: it is the *expected-rate relaxation*.
 
+With ``link = "uplink"`` (SPEC 3.2b) a node's data in a step depends on the energy it has
+stored, hence on the order of service; the per-step amounts are then the *uplink
+relaxation*: the packets that fit the step at the node's own rate (the energy they cost is
+not modelled) and the charge with all the received power. It over-estimates data, and it
+can under-estimate energy (a node that sends frees storage to be refilled), so it is
+neither exact nor a bound: :attr:`StepModel.exact` is false and :attr:`StepModel.uplink`
+says why; the MILP refuses it (status ``unsupported``), the heuristics plan on it and the
+simulator scores their walks.
+
 :mod:`planners.optimal` writes this model as a mixed-integer program, and
 :mod:`planners.rate_greedy` looks ahead with it.
 """
@@ -72,7 +81,10 @@ class StepModel:
     needs_energy: bool
     """Whether a node must also be full to count as served (Gamma < 1)."""
     exact: bool
-    """Whether the amounts are the simulator's own (deterministic channel)."""
+    """Whether the amounts are the simulator's own (deterministic channel, power-split downlink)."""
+    uplink: bool = False
+    """Whether the scenario's data link is the uplink, where the amounts are the uplink
+    relaxation (module docstring), not the simulator's."""
 
     @property
     def n_cells(self) -> int:
@@ -171,7 +183,15 @@ def step_model(tables: K.Tables) -> StepModel:
         logistic_b_w=p[K.P_LB],
     )
 
+    uplink = p[K.P_LINK] == K.LINK_CODES["uplink"]
+
     def step_bits(gain: np.ndarray, snr: np.ndarray) -> np.ndarray:
+        if uplink:
+            # the whole packets that fit the step at the node's own SNR; their energy is not modelled
+            up = gain * snr * p[K.P_UPLINK_SNR_GAIN]
+            ok = up >= p[K.P_SNR_TH]
+            rate = shannon_rate_bps(p[K.P_BW], np.where(ok, up, 1.0))
+            return np.where(ok, np.floor(dt / (p[K.P_PACKET_BITS] / rate)) * p[K.P_PACKET_BITS], 0.0)
         return np.where(gain * snr >= p[K.P_SNR_TH], dt * shannon_rate_bps(p[K.P_BW], alpha * (gain * snr)), 0.0)
 
     def step_joules(gain: np.ndarray, pav: np.ndarray) -> np.ndarray:
@@ -186,9 +206,9 @@ def step_model(tables: K.Tables) -> StepModel:
         joules = np.minimum(step_joules(one, tables.cov_pav), room[nodes])
     else:
         quantile, cdf = _gain_distribution(channel, p[K.P_SIGMA_DB], p[K.P_RICIAN_K])
+        threshold_gain = p[K.P_SNR_TH] / (tables.cov_snr * (p[K.P_UPLINK_SNR_GAIN] if uplink else 1.0))
         bits = _expected_capped(
-            lambda g: step_bits(g, tables.cov_snr[:, None]), data[nodes], quantile, cdf,
-            kinks=[p[K.P_SNR_TH] / tables.cov_snr],
+            lambda g: step_bits(g, tables.cov_snr[:, None]), data[nodes], quantile, cdf, kinks=[threshold_gain],
         )
         joules = _expected_capped(lambda g: step_joules(g, tables.cov_pav[:, None]), room[nodes], quantile, cdf)
     bits = bits * (1.0 - tables.fail_prob[nodes])  # a failed link carries no data (energy still flows)
@@ -213,7 +233,8 @@ def step_model(tables: K.Tables) -> StepModel:
         start_cell=int(tables.start_cell),
         steps=int(p[K.P_STEPS]),
         needs_energy=bool(gamma < 1.0),
-        exact=bool(deterministic and not tables.draws_uniforms),
+        exact=bool(deterministic and not tables.draws_uniforms and not uplink),
+        uplink=bool(uplink),
     )
 
 

@@ -246,7 +246,7 @@ def _json(arrays: dict[str, np.ndarray], name: str) -> Any:
 
 
 class QLearningAgent(_TabularAgent):
-    """Tabular Q-learning (off-policy TD, paper eq. 17) with the paper's epsilon schedule."""
+    """Tabular Q-learning (off-policy TD, paper eq. 21, l. 573) with the paper's epsilon schedule."""
 
     algorithm = "q_learning"
     sarsa = False

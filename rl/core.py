@@ -52,7 +52,7 @@ def epsilon_greedy_action(q, s, epsilon, rng):  # type: ignore[no-untyped-def]
 
 
 def td_update(q, s, a, reward, s_next, a_next, terminated, sarsa, learning_rate, discount):  # type: ignore[no-untyped-def]
-    """One temporal-difference update of Q[s, a] (paper eq. 17 and its on-policy twin).
+    """One temporal-difference update of Q[s, a] (paper eq. 21 and its on-policy twin).
 
     Q-learning bootstraps on max_a' Q[s', a'], SARSA on Q[s', a_next]; a terminal step
     (not a truncation) bootstraps on nothing.

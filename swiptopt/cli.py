@@ -291,12 +291,20 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # ty
 @click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores).")
 @click.option("--scheduler", default=None, help="Dask scheduler address, or local:N.")
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures", help="Where figures and data go.")
-def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # type: ignore[no-untyped-def]
-    """Run every experiment of the paper's figures and write the figures and their data."""
+@click.option(
+    "--link", type=click.Choice(["downlink_split", "uplink"]), default=None,
+    help="Run every figure on this data link (default: the paper preset's, downlink_split); "
+    "uplink experiments are named with an -uplink suffix.",
+)
+def reproduce(what, quick, store_path, workers, scheduler, outdir, link) -> None:  # type: ignore[no-untyped-def]
+    """Run every experiment of the paper's figures and write the figures and their data.
+
+    Data figures run with the reward weight Gamma = 1 (throughput only), energy figures with
+    Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes (l. 817, 963)."""
     from rich.console import Console
 
     from swiptopt.benchmark import plots
-    from swiptopt.benchmark.experiment import builtin_experiments
+    from swiptopt.benchmark.experiment import paper_figures
     from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
@@ -307,9 +315,8 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir) -> None:  # t
     with ResultStore(store_path or DEFAULT_STORE) as store:
         written = plots.coverage_figure(outdir, quick=quick)
         console.print(f"coverage probability -> {', '.join(map(str, written))}")
-        for name, experiment in builtin_experiments().items():
-            if not experiment.figure:
-                continue
+        for experiment in paper_figures(link):
+            name = experiment.name
             if quick:
                 experiment = experiment.quick()
             report = execute(experiment, store, workers=workers, scheduler=scheduler)

@@ -103,9 +103,12 @@ class AuvSwiptEnv(gym.Env):
     An AUV moves in unit steps on a 3D grid of cells above ``n_nodes`` underwater sensor
     nodes. From each cell it covers the nodes inside a downward acoustic cone (within range
     and above the SNR threshold); from each covered node it collects data and, by acoustic
-    SWIPT with power-splitting ratio alpha, delivers energy to the node's storage. The model
-    is Omeke et al.'s (SPEC 3 and 4): Thorp absorption, Stojanovic's noise, the passive
-    sonar equation, a linear or logistic harvester, REMUS-100-like propulsion.
+    SWIPT with power-splitting ratio alpha, delivers energy to the node's storage. With the
+    scenario's ``link = "uplink"`` the data instead travels on each node's own transmission
+    (the paper's eq. 13), in packets paid from its storage, and all of the AUV's received
+    power charges it (SPEC 3.2b). The model is Omeke et al.'s (SPEC 3 and 4): Thorp
+    absorption, Stojanovic's noise, the passive sonar equation, a linear or logistic
+    harvester, REMUS-100-like propulsion.
 
     ## Action Space
 
@@ -130,7 +133,7 @@ class AuvSwiptEnv(gym.Env):
     ## Rewards
 
     ``r = Gamma bits / D_ref + (1 - Gamma) joules / E_ref - lambda E_move / E_move_ref``
-    (paper eq. 18, normalised), where only data still to deliver and energy still storable
+    (paper eq. 23, l. 703, normalised), where only data still to deliver and energy still storable
     count, so hovering over served nodes earns only the movement part. The three weighted
     parts are in ``info["reward_parts"]`` (``throughput``, ``harvest``, ``movement``) and sum
     to the reward.

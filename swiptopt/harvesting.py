@@ -1,6 +1,6 @@
 """SWIPT at the sensor node: induced voltage, available power, power splitting, harvesting.
 
-Paper eqs. 12-13 and SPEC 3.2. The paper writes the SNR where the received level belongs in
+Paper eqs. 10-12 (l. 365-380) and SPEC 3.2. The paper writes the SNR where the received level belongs in
 the induced-voltage formula; the derivation it cites (Bereketli & Bilgen 2012) uses the
 received level RL = SL - TL, and so do we.
 
@@ -35,7 +35,7 @@ def _split(split_ratio: ArrayLike) -> np.ndarray:
 
 
 def induced_voltage_v(received_level_db: ArrayLike, sensitivity_db: ArrayLike) -> np.ndarray:
-    """RMS open-circuit voltage of the node's hydrophone, V = 10^((RL + rho) / 20) (eq. 12).
+    """RMS open-circuit voltage of the node's hydrophone, V = 10^((RL + rho) / 20) (paper eq. 10, l. 365).
 
     ``received_level_db`` in dB re 1 uPa; ``sensitivity_db`` (rho) in dB re 1 V/uPa.
     """
@@ -48,7 +48,7 @@ def available_power_w(
     load_ohm: ArrayLike,
     n_elements: ArrayLike = 1,
 ) -> np.ndarray:
-    """Electrical power available to a matched load, P_av = n V^2 / (4 R_p), W (eq. 13)."""
+    """Electrical power available to a matched load, P_av = n V^2 / (4 R_p), W (paper eq. 11, l. 370)."""
     load = np.asarray(load_ohm, dtype=float)
     if np.any(~(load > 0)):
         raise ValueError(f"load_ohm must be > 0, got {load_ohm!r}")

@@ -27,7 +27,7 @@ import numpy as np
 from swiptopt import acoustics, auv, harvesting
 from swiptopt.coverage import cell_coverage
 from swiptopt.jit import compile_family, numba_available  # noqa: F401 (re-exported)
-from swiptopt.link import auv_power, link_budget, reward_references
+from swiptopt.link import auv_power, harvest_split, link_budget, reward_references, uplink_snr_offset_db
 from swiptopt.scenario import Scenario
 
 #: Actions: unit moves +x, -x, +y, -y, +z (deeper), -z, and hover.
@@ -47,12 +47,17 @@ P_SNR_TH, P_CHANNEL, P_SIGMA_DB, P_RICIAN_K, P_GAMMA, P_LAMBDA = range(8, 14)
 P_DATA_REF, P_ENERGY_REF, P_MOVE_REF, P_PROJECTOR_J, P_HOTEL_J = range(14, 19)
 P_DRAIN_J, P_GATE_J, P_BATTERY_J, P_STEPS, P_DATA_TARGET, P_ENERGY_TARGET = range(19, 25)
 P_DRAW_UNIFORMS, P_NORMAL_ROWS = range(25, 27)
-N_PARAMS = 27
+P_LINK, P_UPLINK_SNR_GAIN, P_NODE_TX_W, P_NODE_CIRCUIT_W, P_PACKET_BITS = range(27, 32)
+N_PARAMS = 32
+
+#: ``params[P_LINK]`` of each data link (SPEC 3.2b).
+LINK_CODES = {"downlink_split": 0, "uplink": 1}
 
 # Indices into ``EpisodeState.acc``, the episode's running totals.
 A_PROPULSION_J, A_HOTEL_J, A_PROJECTOR_J, A_BITS, A_JOULES, A_RETURN = range(6)
 A_STEPS_DATA_TARGET, A_STEPS_ENERGY_TARGET, A_PROJECTOR_STEPS = range(6, 9)
-N_ACC = 9
+A_COVERED_NODE_STEPS, A_NODE_TX_J = range(9, 11)
+N_ACC = 11
 
 # Indices into the reward-parts output of ``step``.
 R_THROUGHPUT, R_HARVEST, R_MOVEMENT = range(3)
@@ -140,7 +145,7 @@ def build_tables(scenario: Scenario) -> Tables:
     params = np.zeros(N_PARAMS)
     params[P_DT] = dt
     params[P_BW] = scenario.bandwidth_hz
-    params[P_ALPHA] = scenario.split_ratio
+    params[P_ALPHA] = harvest_split(scenario)
     params[P_LOGISTIC] = float(scenario.harvester == "logistic")
     params[P_ETA] = scenario.harvest_efficiency
     params[P_LMAX] = scenario.logistic_max_w
@@ -162,6 +167,11 @@ def build_tables(scenario: Scenario) -> Tables:
     params[P_BATTERY_J] = scenario.battery_j
     params[P_STEPS] = scenario.episode_steps
     params[P_NORMAL_ROWS] = {"none": 0, "shadowing": 1, "rician": 2}[scenario.channel]
+    params[P_LINK] = LINK_CODES[scenario.link]
+    params[P_UPLINK_SNR_GAIN] = float(acoustics.db_to_linear(uplink_snr_offset_db(scenario)))
+    params[P_NODE_TX_W] = scenario.node_transmit_power_w
+    params[P_NODE_CIRCUIT_W] = scenario.node_circuit_power_w
+    params[P_PACKET_BITS] = scenario.packet_bits
 
     return Tables(
         next_cell=next_cell,
@@ -473,10 +483,19 @@ def step(  # type: ignore[no-untyped-def]
 
     Move (blocked moves stay put and still cost the attempt) -> nodes covered from the new
     cell -> per covered node, with its next draws from the buffers (a failure uniform, the
-    fading normals) giving this step's fading gain g: data
-    min(D_left, dt B log2(1 + alpha g SNR)) unless the link fails, the instantaneous SNR is
-    under the threshold, or the node's energy is under the gate; energy
-    min(E_cap - E, dt P_h((1 - alpha) g P_av)) -> idle drain -> reward parts -> t += 1.
+    fading normals) giving this step's fading gain g, by the scenario's data link (SPEC 3.2b):
+
+    - ``downlink_split``: data min(D_left, dt B log2(1 + alpha g SNR)) unless the link
+      fails, the instantaneous SNR is under the threshold, or the node's energy is under
+      the gate; then energy min(E_cap - E, dt P_h((1 - alpha) g P_av));
+    - ``uplink``: first energy min(E_cap - E, dt P_h(g P_av)) (alpha = 0: all of the AUV's
+      signal charges the node), then, unless the link fails or the node is under the gate,
+      the node sends at its own SNR g SNR_up (the same fading draw: reciprocity) whole
+      packets of L bits, each taking L / R s on air and (P_i + P_C) L / R J from its
+      storage: as many as fit the step, its stored energy pays for and its data needs
+      (the last packet padded); none when SNR_up is under the threshold;
+
+    -> idle drain -> reward parts -> t += 1.
     The reward's movement part counts propulsion and hotel energy; the projector's energy
     (on in any step with a covered node) is counted in the totals, not the reward.
     """
@@ -491,6 +510,7 @@ def step(  # type: ignore[no-untyped-def]
 
     channel = params[P_CHANNEL]
     alpha = params[P_ALPHA]
+    uplink = params[P_LINK] == 1.0
     draw_u = params[P_DRAW_UNIFORMS] == 1.0
     rows = int(params[P_NORMAL_ROWS])
     bits_total = 0.0
@@ -500,6 +520,7 @@ def step(  # type: ignore[no-untyped-def]
     if stop > start:
         acc[A_PROJECTOR_J] += params[P_PROJECTOR_J]
         acc[A_PROJECTOR_STEPS] += 1.0
+        acc[A_COVERED_NODE_STEPS] += stop - start
     for p in range(start, stop):
         i = cov_node[p]
         u = 1.0  # never fails
@@ -522,7 +543,8 @@ def step(  # type: ignore[no-untyped-def]
             gain = 1.0
         snr = gain * cov_snr[p]
         if (
-            data_left[i] > 0.0
+            not uplink
+            and data_left[i] > 0.0
             and u >= fail_prob[i]
             and snr >= params[P_SNR_TH]
             and energy[i] >= params[P_GATE_J]
@@ -545,6 +567,28 @@ def step(  # type: ignore[no-untyped-def]
             energy[i] += joules
             delivered[i] += joules
             joules_total += joules
+        if (
+            uplink
+            and data_left[i] > 0.0
+            and u >= fail_prob[i]
+            and energy[i] >= params[P_GATE_J]
+        ):
+            snr_up = snr * params[P_UPLINK_SNR_GAIN]
+            if snr_up >= params[P_SNR_TH]:
+                packet = params[P_PACKET_BITS]
+                airtime = packet / _shannon_rate_bps(params[P_BW], snr_up)
+                cost = (params[P_NODE_TX_W] + params[P_NODE_CIRCUIT_W]) * airtime
+                packets = min(
+                    math.floor(dt / airtime), math.floor(energy[i] / cost), math.ceil(data_left[i] / packet)
+                )
+                if packets > 0:
+                    bits = min(data_left[i], packets * packet)
+                    spent = packets * cost
+                    energy[i] = max(0.0, energy[i] - spent)
+                    acc[A_NODE_TX_J] += spent
+                    data_left[i] -= bits
+                    collected[i] += bits
+                    bits_total += bits
     if params[P_DRAIN_J] > 0.0:
         for i in range(energy.shape[0]):
             energy[i] = max(0.0, energy[i] - params[P_DRAIN_J])

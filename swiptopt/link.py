@@ -41,7 +41,13 @@ class LinkBudget:
     available_power_w: np.ndarray
     """Electrical power available at the node's transducer, W."""
     harvested_power_w: np.ndarray
-    """Harvested DC power with the split (1 - alpha), W; zero where out of service."""
+    """Harvested DC power, W; zero where out of service. With ``link = "downlink_split"`` the
+    split (1 - alpha) goes to the harvester, with ``"uplink"`` all of the received power."""
+    uplink_snr_db: np.ndarray
+    """SNR of the node's own transmission at the AUV, dB (paper eq. 13): the node's source
+    level through the same channel and noise, received with the AUV transducer's directivity."""
+    uplink_rate_bps: np.ndarray
+    """Rate of the node's transmission, B log2(1 + SNR_up), bit/s; zero below the threshold."""
 
 
 def source_level_db(scenario: Scenario) -> float:
@@ -51,6 +57,30 @@ def source_level_db(scenario: Scenario) -> float:
             scenario.electrical_power_w, scenario.electroacoustic_efficiency, scenario.directivity_tx_db
         )
     )
+
+
+def node_source_level_db(scenario: Scenario) -> float:
+    """Source level of a node's transmitter (uplink), dB re 1 uPa @ 1 m (paper eq. 2 with
+    the node's power, efficiency and its transducer's directivity)."""
+    return float(
+        acoustics.source_level_db(
+            scenario.node_transmit_power_w, scenario.node_electroacoustic_efficiency, scenario.directivity_rx_db
+        )
+    )
+
+
+def uplink_snr_offset_db(scenario: Scenario) -> float:
+    """SNR of the node's transmission at the AUV minus the AUV's at the node, dB.
+
+    Both directions cross the same transmission loss and the same band noise (paper eqs. 3,
+    13), and each transducer has one directivity for sending and receiving, so the
+    difference is a constant: 10 log10(P_i eta_i / (P_elec eta_ea)). The kernel scales each
+    pair's mean SNR by it, so the two directions share one table and one fading draw
+    (reciprocity).
+    """
+    downlink = source_level_db(scenario) + scenario.directivity_rx_db
+    uplink = node_source_level_db(scenario) + scenario.directivity_tx_db
+    return uplink - downlink
 
 
 def noise_level_db(scenario: Scenario) -> float:
@@ -70,10 +100,11 @@ def noise_level_db(scenario: Scenario) -> float:
 def harvested_power_w(
     scenario: Scenario, available_power_w: ArrayLike, split_ratio: ArrayLike | None = None
 ) -> np.ndarray:
-    """The scenario's harvester applied to ``available_power_w`` (split default: the scenario's)."""
+    """The scenario's harvester applied to ``available_power_w`` (split default:
+    :func:`harvest_split`)."""
     return harvesting.harvested_power_w(
         available_power_w,
-        scenario.split_ratio if split_ratio is None else split_ratio,
+        harvest_split(scenario) if split_ratio is None else split_ratio,
         scenario.harvest_efficiency,
         scenario.harvester,  # type: ignore[arg-type]
         logistic_max_w=scenario.logistic_max_w,
@@ -85,8 +116,14 @@ def harvested_power_w(
 def link_budget(
     scenario: Scenario, distance_m: ArrayLike, split_ratio: ArrayLike | None = None
 ) -> LinkBudget:
-    """Every quantity of the mean (unfaded) link at ``distance_m`` (any shape), SPEC 3.1-3.2."""
-    alpha = scenario.split_ratio if split_ratio is None else split_ratio
+    """Every quantity of the mean (unfaded) link at ``distance_m`` (any shape), SPEC 3.1-3.2b.
+
+    ``split_ratio`` defaults to the scenario's for ``link = "downlink_split"`` and to 0 (all
+    received power to the harvester) for ``"uplink"``.
+    """
+    if split_ratio is None:
+        split_ratio = harvest_split(scenario)
+    alpha = split_ratio
     d = np.asarray(distance_m, dtype=float)
     sl = source_level_db(scenario)
     nl = noise_level_db(scenario)
@@ -98,7 +135,36 @@ def link_budget(
     rate = np.where(ok, acoustics.shannon_rate_bps(scenario.bandwidth_hz, info_snr), 0.0)
     p_av = harvesting.available_power_w(rl, scenario.sensitivity_db, scenario.load_ohm, scenario.n_elements)
     p_h = np.where(ok, harvested_power_w(scenario, p_av, alpha), 0.0)
-    return LinkBudget(d, sl, nl, tl, rl, snr, ok, rate, p_av, p_h)
+    snr_up = snr + uplink_snr_offset_db(scenario)
+    rate_up = np.where(
+        snr_up >= scenario.snr_threshold_db,
+        acoustics.shannon_rate_bps(scenario.bandwidth_hz, acoustics.db_to_linear(snr_up)),
+        0.0,
+    )
+    return LinkBudget(d, sl, nl, tl, rl, snr, ok, rate, p_av, p_h, snr_up, rate_up)
+
+
+def harvest_split(scenario: Scenario) -> float:
+    """The share of the AUV's signal a node sends to information decoding: the scenario's
+    alpha on the power-split downlink; 0 on the uplink, where the node decodes nothing and
+    harvests all it receives."""
+    return scenario.split_ratio if scenario.link == "downlink_split" else 0.0
+
+
+@dataclass(frozen=True)
+class UplinkPacket:
+    """What one uplink packet costs a node on a link of a given rate (SPEC 3.2b)."""
+
+    airtime_s: np.ndarray
+    """Time on air, packet_bits / rate, s."""
+    energy_j: np.ndarray
+    """Energy from the node's storage, (P_i + P_C) x time on air, J."""
+
+
+def uplink_packet(scenario: Scenario, rate_bps: ArrayLike) -> UplinkPacket:
+    """Time on air and energy of one packet at ``rate_bps`` (> 0)."""
+    airtime = scenario.packet_bits / np.asarray(rate_bps, dtype=float)
+    return UplinkPacket(airtime, (scenario.node_transmit_power_w + scenario.node_circuit_power_w) * airtime)
 
 
 def service_range_m(scenario: Scenario) -> float:

@@ -24,7 +24,10 @@ EPISODE_METRICS = (
     "auv_projector_j",
     "mission_time_s",
     "energy_efficiency_bit_per_j",
+    "energy_efficiency_always_on_bit_per_j",
+    "energy_efficiency_per_node_bit_per_j",
     "mobility_efficiency_bit_per_j",
+    "node_transmit_energy_j",
     "nodes_served",
     "jain_data",
     "jain_energy",
@@ -46,17 +49,35 @@ def jain_index(x: np.ndarray) -> float:
 def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
     """The metrics of an episode from its final state.
 
-    ``energy_efficiency_bit_per_j`` divides the data by all the AUV's energy (propulsion,
-    hotel and projector: SPEC 4); ``mobility_efficiency_bit_per_j`` by propulsion and hotel
-    energy only, the AUV energy of the paper's eqs. 14-16, for comparison with its results.
+    Energy efficiency, bits per joule of AUV energy, under each reading of the paper's
+    "EE = T / P_tau ... P_tau is the sum of the transmission power from the AUV to node and
+    the navigation power" (l. 936-941), side by side:
 
-    ``steps_to_*_target`` are ``None`` when the target was not reached (never a number
+    - ``energy_efficiency_bit_per_j``: propulsion + hotel + the projector in the steps where
+      it serves at least one node (the simulator's own AUV energy, ``auv_energy_j``);
+    - ``energy_efficiency_always_on_bit_per_j``: the projector counted in every step of the
+      episode, covered or not;
+    - ``energy_efficiency_per_node_bit_per_j``: the projector's energy counted once per node
+      it covers in each step, as if "each node transmits with 1 kW" (l. 938) meant one
+      P_elec per served link: this AUV energy grows with the number of nodes covered;
+    - ``mobility_efficiency_bit_per_j``: propulsion and hotel only (motion, eqs. 16-18).
+
+    ``node_transmit_energy_j``: what the nodes spent from their storage on uplink packets
+    (0 on the power-split downlink).
+
+    ``steps_to_data_target`` / ``steps_to_energy_target``: the first step at which the
+    episode's data collected (energy delivered) reached ``target_fraction`` of what the
+    *coverable* nodes hold (can store): nodes that no cell covers count in neither the
+    target nor the progress. ``None`` when the target was not reached (never a number
     that looks like one); ``jain_*`` are NaN when nothing at all was delivered.
     """
     acc = state.acc
-    gamma = tables.params[K.P_GAMMA]
-    auv_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J] + acc[K.A_PROJECTOR_J])
-    mobility_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
+    params = tables.params
+    gamma = params[K.P_GAMMA]
+    motion_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
+    auv_j = motion_j + float(acc[K.A_PROJECTOR_J])
+    always_on_j = motion_j + float(params[K.P_PROJECTOR_J]) * state.t
+    per_node_j = motion_j + float(params[K.P_PROJECTOR_J]) * float(acc[K.A_COVERED_NODE_STEPS])
     bits = float(acc[K.A_BITS])
     served = int(np.count_nonzero(K.served_mask(state.data_left, state.energy, tables.capacity, gamma)))
     steps_data = acc[K.A_STEPS_DATA_TARGET]
@@ -69,10 +90,12 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
         "auv_propulsion_j": float(acc[K.A_PROPULSION_J]),
         "auv_hotel_j": float(acc[K.A_HOTEL_J]),
         "auv_projector_j": float(acc[K.A_PROJECTOR_J]),
-        "mission_time_s": state.t * float(tables.params[K.P_DT]),
-        "energy_efficiency_bit_per_j": bits / auv_j if auv_j > 0 else 0.0,
-        # the paper's AUV energy (eqs. 14-16) is propulsion and hotel load only
-        "mobility_efficiency_bit_per_j": bits / mobility_j if mobility_j > 0 else 0.0,
+        "mission_time_s": state.t * float(params[K.P_DT]),
+        "energy_efficiency_bit_per_j": _ratio(bits, auv_j),
+        "energy_efficiency_always_on_bit_per_j": _ratio(bits, always_on_j),
+        "energy_efficiency_per_node_bit_per_j": _ratio(bits, per_node_j),
+        "mobility_efficiency_bit_per_j": _ratio(bits, motion_j),
+        "node_transmit_energy_j": float(acc[K.A_NODE_TX_J]),
         "nodes_served": served,
         "jain_data": jain_index(state.collected),
         "jain_energy": jain_index(state.delivered),
@@ -80,3 +103,7 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
         "steps_to_energy_target": None if steps_energy < 0 else int(steps_energy),
         "length": state.t,
     }
+
+
+def _ratio(bits: float, joules: float) -> float:
+    return bits / joules if joules > 0 else 0.0

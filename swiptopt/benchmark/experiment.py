@@ -347,48 +347,92 @@ def builtin_experiments() -> dict[str, Experiment]:
                 episodes=20,
                 baseline="random",
             ),
-            _builtin(
-                "fig-reward-vs-split",
-                "reward (return) against the power-splitting factor, 25 nodes",
-                scenario={**paper, "n_nodes": 25},
-                sweep={"split_ratio": [0.1, 0.3, 0.5, 0.7, 0.9]},
-                algorithms=_AGENTS_AND_PLANNERS,
-                layouts=20,
-                episodes=5,
-                figure={"metric": "return", "x": "split_ratio", "xlabel": "split ratio alpha"},
-            ),
-            _builtin(
-                "fig-throughput-vs-nodes",
-                "data collected against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
-                figure={"metric": "data_bits", "x": "n_nodes"},
-            ),
-            _builtin(
-                "fig-steps-to-data-target",
-                "steps to collect half of the collectable data, against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
-                figure={"metric": "steps_to_data_target", "x": "n_nodes"},
-            ),
-            _builtin(
-                "fig-efficiency-vs-nodes",
-                "energy efficiency against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
-                figure={"metric": "mobility_efficiency_bit_per_j", "x": "n_nodes"},
-            ),
-            _builtin(
-                "fig-harvested-vs-nodes",
-                "energy delivered to the nodes against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
-                figure={"metric": "energy_delivered_j", "x": "n_nodes"},
-            ),
-            _builtin(
-                "fig-steps-to-energy-target",
-                "steps to deliver half of the deliverable energy, against the number of nodes",
-                scenario=paper, sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5,
-                figure={"metric": "steps_to_energy_target", "x": "n_nodes"},
-            ),
+            *paper_figures(),
         )
     }
+
+
+#: The paper's reward-weight extremes (l. 817: "only values of eta = 1 and eta = 0 ...
+#: These values represent the extreme ends of the reward function"): its data figures
+#: weigh throughput only (Gamma = 1 in eq. 23), its energy figures harvesting only
+#: (Gamma = 0) with all of the received power sent to the harvester (alpha = 0, l. 963).
+#: l. 817 names the weight eta and pairs 1 with harvesting; eq. 23 pairs Gamma = 1 with
+#: throughput, and we follow the equation.
+PAPER_DATA_WEIGHT = {"reward_weight": 1.0}
+PAPER_ENERGY_WEIGHT = {"reward_weight": 0.0, "split_ratio": 0.0}
+
+#: Each reading of the paper's energy efficiency (l. 936-941) as a figure of its own; the
+#: four share their tasks (a task's key does not include the experiment's name).
+EFFICIENCY_FIGURES = {
+    "fig-efficiency-vs-nodes": ("energy_efficiency_bit_per_j", "projector counted while it serves"),
+    "fig-efficiency-always-on-vs-nodes": ("energy_efficiency_always_on_bit_per_j", "projector counted every step"),
+    "fig-efficiency-per-node-vs-nodes": ("energy_efficiency_per_node_bit_per_j", "projector counted per covered node"),
+    "fig-mobility-efficiency-vs-nodes": ("mobility_efficiency_bit_per_j", "motion energy only"),
+}
+
+
+def paper_figures(link: str | None = None) -> list[Experiment]:
+    """The experiments behind the paper's figures, at the paper's reward weights.
+
+    ``link`` (``"downlink_split"`` or ``"uplink"``) runs every figure on that data link;
+    the uplink's experiments are named with an ``-uplink`` suffix so that their figures and
+    tables sit beside the downlink's. ``None`` keeps the preset's link (the power-split
+    downlink) and the plain names.
+    """
+    paper: dict[str, Any] = {"preset": "paper"}
+    suffix = ""
+    if link is not None:
+        paper["link"] = link
+        suffix = "-uplink" if link == "uplink" else ""
+    common = dict(sweep=_NODE_SWEEP, algorithms=_AGENTS_AND_PLANNERS, layouts=20, episodes=5)
+    data = {**paper, **PAPER_DATA_WEIGHT}
+    energy = {**paper, **PAPER_ENERGY_WEIGHT}
+    steps_doc = "of what the coverable nodes hold (nodes no cell covers count in neither)"
+    figures = [
+        _builtin(
+            "fig-reward-vs-split",
+            "reward (return) against the power-splitting factor, 25 nodes, Gamma = 0.5",
+            scenario={**paper, "n_nodes": 25},
+            sweep={"split_ratio": [0.1, 0.3, 0.5, 0.7, 0.9]},
+            algorithms=_AGENTS_AND_PLANNERS,
+            layouts=20,
+            episodes=5,
+            figure={"metric": "return", "x": "split_ratio", "xlabel": "split ratio alpha"},
+        ),
+        _builtin(
+            "fig-throughput-vs-nodes",
+            "data collected against the number of nodes, Gamma = 1 (throughput only)",
+            scenario=data, **common, figure={"metric": "data_bits", "x": "n_nodes"},
+        ),
+        _builtin(
+            "fig-steps-to-data-target",
+            f"steps to collect half {steps_doc}, against the number of nodes, Gamma = 1",
+            scenario=data, **common, figure={"metric": "steps_to_data_target", "x": "n_nodes"},
+        ),
+        *(
+            _builtin(
+                name,
+                f"energy efficiency ({what}) against the number of nodes, Gamma = 1",
+                scenario=data, **common, figure={"metric": metric, "x": "n_nodes"},
+            )
+            for name, (metric, what) in EFFICIENCY_FIGURES.items()
+        ),
+        _builtin(
+            "fig-harvested-vs-nodes",
+            "energy delivered to the nodes against the number of nodes, Gamma = 0, alpha = 0 (harvesting only)",
+            scenario=energy, **common, figure={"metric": "energy_delivered_j", "x": "n_nodes"},
+        ),
+        _builtin(
+            "fig-steps-to-energy-target",
+            f"steps to deliver half of the energy the coverable nodes can store, against the number of nodes, "
+            "Gamma = 0, alpha = 0",
+            scenario=energy, **common, figure={"metric": "steps_to_energy_target", "x": "n_nodes"},
+        ),
+    ]
+    if link == "uplink":
+        # on the uplink alpha has no effect (all received power charges): no split sweep
+        figures = [dataclasses.replace(e, name=e.name + suffix) for e in figures if e.name != "fig-reward-vs-split"]
+    return figures
 
 
 def load_experiment(spec: str) -> Experiment:

@@ -7,7 +7,15 @@ import dataclasses
 import numpy as np
 from rich.table import Table
 
-from swiptopt.link import auv_power, link_budget, reward_references, service_range_m
+from swiptopt.link import (
+    auv_power,
+    harvest_split,
+    link_budget,
+    node_source_level_db,
+    reward_references,
+    service_range_m,
+    uplink_packet,
+)
 from swiptopt.scenario import Scenario
 
 #: Distances of the link-budget table, m.
@@ -54,6 +62,8 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
         ("bandwidth", f"{scenario.bandwidth_hz:.6g}", "Hz"),
         ("source level SL", f"{budget.source_level_db:.2f}", "dB re 1 uPa @ 1 m"),
         ("noise level NL", f"{budget.noise_level_db:.2f}", "dB re 1 uPa"),
+        ("data link", scenario.link, ""),
+        ("node source level (uplink)", f"{node_source_level_db(scenario):.2f}", "dB re 1 uPa @ 1 m"),
         ("service range (cone or SNR)", f"{service_range_m(scenario):.4g}", "m"),
         ("reward data reference D_ref", f"{refs.data_ref_bits:.6g}", "bit"),
         ("reward energy reference E_ref", f"{refs.energy_ref_j:.6g}", "J"),
@@ -61,7 +71,8 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
     ):
         derived.add_row(label, value, unit)
 
-    link = Table(title=f"Link budget (split ratio {scenario.split_ratio:g}, mean channel)", title_justify="left")
+    title = f"Link budget ({scenario.link}, split ratio {harvest_split(scenario):g}, mean channel)"
+    link = Table(title=title, title_justify="left")
     link.add_column("distance (m)", justify="right")
     for col in ("TL (dB)", "RL (dB re 1 uPa)", "SNR (dB)", "rate (kbit/s)", "available (mW)", "harvested (mW)"):
         link.add_column(col, justify="right")
@@ -75,6 +86,21 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
             f"{budget.available_power_w[i] * 1e3:.4g}",
             f"{budget.harvested_power_w[i] * 1e3:.4g}",
         )
+    tables = [params, derived, link]
+    if scenario.link == "uplink":
+        up = Table(title="Uplink (each node to the AUV, mean channel)", title_justify="left")
+        for col in ("distance (m)", "SNR (dB)", "rate (kbit/s)", "packet on air (ms)", "packet (mJ)", "all data (J)"):
+            up.add_column(col, justify="right")
+        sending = budget.uplink_rate_bps > 0
+        packet = uplink_packet(scenario, np.where(sending, budget.uplink_rate_bps, 1.0))
+        packets = np.ceil(scenario.data_bits / scenario.packet_bits)
+        for i, d in enumerate(BUDGET_DISTANCES_M):
+            cells = [f"{packet.airtime_s[i] * 1e3:.4g}", f"{packet.energy_j[i] * 1e3:.4g}", f"{packets * packet.energy_j[i]:.4g}"]
+            up.add_row(
+                f"{d:g}", f"{budget.uplink_snr_db[i]:.2f}", f"{budget.uplink_rate_bps[i] / 1e3:.2f}",
+                *(cells if sending[i] else ["-"] * 3),
+            )
+        tables.append(up)
 
     power = auv_power(scenario)
     auv = Table(title="AUV power (still water)", title_justify="left")
@@ -92,4 +118,4 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
         ("projector energy per step", power.projector_energy_j, "J"),
     ):
         auv.add_row(label, f"{value:.4g}", unit)
-    return [params, derived, link, auv]
+    return [*tables, auv]

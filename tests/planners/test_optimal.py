@@ -159,7 +159,12 @@ def test_expected_amounts_match_monte_carlo():
 
 @pytest.mark.parametrize(
     ("override", "field"),
-    [({"idle_drain_w": 1e-3}, "idle_drain_w"), ({"energy_gate_j": 0.5}, "energy_gate_j"), ({"battery_j": 1e4}, "battery_j")],
+    [
+        ({"idle_drain_w": 1e-3}, "idle_drain_w"),
+        ({"energy_gate_j": 0.5}, "energy_gate_j"),
+        ({"battery_j": 1e4}, "battery_j"),
+        ({"link": "uplink"}, "uplink"),
+    ],
 )
 def test_unsupported_scenarios_return_a_status_naming_the_reason(override, field):
     scenario = Scenario.preset("paper", n_nodes=5, **DETERMINISTIC, **override)

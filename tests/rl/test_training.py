@@ -11,6 +11,7 @@ SCENARIOS = [
     ("paper", {"n_nodes": 25}),
     ("harbour", {"channel": "rician", "harvester": "logistic"}),
     ("tiny", {}),
+    ("paper", {"n_nodes": 12, "link": "uplink", "energy_gate_j": 0.1}),
 ]
 
 

@@ -19,6 +19,16 @@ def test_scenario_show_prints_parameters_and_link_budget(preset, capsys):
     assert "81.85" in out or preset == "harbour"  # the paper's noise level, dB re 1 uPa
 
 
+def test_scenario_show_paper_table1(capsys):
+    assert main(["scenario", "show", "paper-table1"]) == 0
+    out = capsys.readouterr().out
+    # Table I: the nodes' 170 dB re 1 uPa @ 1 m, on the uplink, 100-byte packets, 100 mW circuit
+    for text in ("Scenario 'paper-table1'", "uplink", "170.00", "800", "0.1", "Uplink (each node to the AUV"):
+        assert text in out
+    # node to AUV at 10 m: 197.79 - 170.00 = 27.79 dB below the AUV's 100.88 dB
+    assert "73.07" in out
+
+
 def test_scenario_show_a_file(tmp_path, capsys):
     path = tmp_path / "mine.toml"
     path.write_text('preset = "tiny"\nsplit_ratio = 0.25\n')

@@ -24,6 +24,12 @@ CASES = [
     ("paper", {"channel": "rician", "harvester": "logistic", "n_nodes": 8}),
     ("harbour", {"idle_drain_w": 0.001, "energy_gate_j": 0.3, "n_nodes": 6}),
 ]
+#: The node-to-AUV data link (SPEC 3.2b): packets paid from the nodes' storage.
+UPLINK_CASES = [
+    ("paper", {"link": "uplink"}),
+    ("harbour", {"link": "uplink", "channel": "rician", "energy_gate_j": 0.2, "n_nodes": 6, "storage_capacity_j": 0.3}),
+]
+CASES += UPLINK_CASES
 
 
 @pytest.mark.parametrize("observation", ["tabular", "vector"])
@@ -90,8 +96,13 @@ def test_invariants_over_random_rollouts(preset, overrides):
             assert np.all(s.data_left >= 0) and np.all(s.collected <= t.data0)
             np.testing.assert_allclose(s.collected + s.data_left, t.data0, rtol=1e-12)
             assert np.all(s.energy >= 0) and np.all(s.energy <= t.capacity * (1 + 1e-12))
+            spent = s.acc[K.A_NODE_TX_J]
             if not drains:
-                assert np.all(s.delivered <= free0 * (1 + 1e-12) + 1e-15)
+                # energy is conserved: what the nodes hold is what they had, plus what they
+                # harvested, minus what their uplink packets cost (0 on the downlink)
+                assert s.energy.sum() == pytest.approx(t.energy0.sum() + s.delivered.sum() - spent, abs=1e-9)
+                if spent == 0:
+                    assert np.all(s.delivered <= free0 * (1 + 1e-12) + 1e-15)
             auv = s.acc[K.A_PROPULSION_J] + s.acc[K.A_HOTEL_J] + s.acc[K.A_PROJECTOR_J]
             assert auv > auv_prev
             auv_prev = auv
@@ -160,6 +171,62 @@ def test_worked_case_one_node_straight_below():
     assert info["reward_parts"]["movement"] == pytest.approx(-0.02 * hover_j / refs.move_energy_ref_j)
     assert env.state.acc[K.A_PROJECTOR_J] == pytest.approx(1000.0 * dt)
     assert reward == pytest.approx(sum(info["reward_parts"].values()))
+
+
+def test_worked_case_uplink_packets_paid_from_storage():
+    # a node 10 m below, storage 1 J, half full: the AUV's signal first charges it (all of
+    # it: no split on the uplink), then it sends whole 800-bit packets at its own SNR
+    scenario = _one_node_below(link="uplink", initial_soc_min=0.5, initial_soc_max=0.5, split_ratio=0.7)
+    env = AuvSwiptEnv(scenario)
+    env.reset(seed=0)
+    env.step(K.HOVER)
+    dt = 10.0 / 1.5
+    tl = acoustics.transmission_loss_db(10.0, 24.0, 1.5)
+    nl = acoustics.noise_level_db(24.0, 4000.0, 0.0, 10.0)
+    sl_auv = acoustics.source_level_db(1000.0, 0.5)
+    sl_node = acoustics.source_level_db(1.6635, 0.5)
+    assert sl_node == pytest.approx(170.0, abs=1e-3)  # Table I's 170 dB re 1 uPa @ 1 m
+    p_av = harvesting.available_power_w(sl_auv - tl, -170.0, 100.0)
+    joules = min(0.5, dt * float(harvesting.harvested_power_w(p_av, 0.0, 0.5)))  # alpha ignored
+    rate = 4000.0 * math.log2(1 + acoustics.db_to_linear(acoustics.snr_db(sl_node, tl, nl)))
+    airtime = 800.0 / rate
+    cost = (1.6635 + 0.1) * airtime
+    packets = min(math.floor(dt / airtime), math.floor((0.5 + joules) / cost), 125)
+    assert 0 < packets < 125  # the storage, not the time on air, limits this step
+    assert env.state.delivered[0] == pytest.approx(joules, rel=1e-12)
+    assert env.state.collected[0] == packets * 800.0
+    assert env.state.acc[K.A_NODE_TX_J] == pytest.approx(packets * cost, rel=1e-12)
+    assert env.state.energy[0] == pytest.approx(0.5 + joules - packets * cost, rel=1e-9)
+    assert env.state.energy[0] < cost  # it sent all it could pay for
+    # an empty node under the gate sends nothing, whatever its SNR
+    gated = AuvSwiptEnv(scenario.replace(energy_gate_j=0.9))
+    gated.reset(seed=0)
+    gated.step(K.HOVER)
+    assert gated.state.collected[0] == 0.0 and gated.state.acc[K.A_NODE_TX_J] == 0.0
+    # the downlink with the same split moves all the data in one step
+    down = AuvSwiptEnv(scenario.replace(link="downlink_split"))
+    down.reset(seed=0)
+    down.step(K.HOVER)
+    assert down.state.collected[0] == 1e5 and down.state.acc[K.A_NODE_TX_J] == 0.0
+
+
+def test_energy_efficiency_readings_side_by_side():
+    env = AuvSwiptEnv(Scenario.preset("paper", n_nodes=30, channel="none"))
+    env.reset(seed=0)
+    covered_steps, covered_nodes = 0, 0
+    for a in [4, 4, 6, 0, 0, 2, 2, 6, 1, 1, 1, 3, 3, 5, 5, 6]:
+        _, _, term, trunc, info = env.step(a)
+        n = len(env.tables.covered(env.state.cell))
+        covered_steps += n > 0
+        covered_nodes += n
+    m = env.episode_metrics()
+    p = auv_power(env.scenario)
+    motion = m["auv_propulsion_j"] + m["auv_hotel_j"]
+    assert 0 < covered_steps < 16 and covered_nodes > covered_steps  # the readings differ here
+    assert m["energy_efficiency_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * covered_steps))
+    assert m["energy_efficiency_always_on_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * 16))
+    assert m["energy_efficiency_per_node_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * covered_nodes))
+    assert m["mobility_efficiency_bit_per_j"] == pytest.approx(m["data_bits"] / motion)
 
 
 def test_hovering_over_served_nodes_earns_exactly_the_movement_penalty():
@@ -256,7 +323,7 @@ def reference_vector_observation(env):
     return np.concatenate([here, [1.0 - s.t / sc.episode_steps], per_node.ravel()]).astype(np.float32)
 
 
-@pytest.mark.parametrize("preset, overrides", CASES[:3])
+@pytest.mark.parametrize("preset, overrides", CASES[:3] + UPLINK_CASES)
 def test_vector_observation_is_the_same_compiled_python_and_written_out(preset, overrides):
     actions = np.random.default_rng(7).integers(0, 7, 120)
     envs = [AuvSwiptEnv(preset=preset, observation="vector", backend=b, **overrides) for b in ("compiled", "python")]

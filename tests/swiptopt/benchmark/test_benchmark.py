@@ -223,3 +223,26 @@ def test_paired_table_against_the_baseline(tmp_path, capsys):
             assert q.low <= q.ratio * (1 + 1e-12) and q.ratio <= q.high * (1 + 1e-12)
     assert main(["table", str(store), "--format", "csv"]) == 0
     assert "algorithm,metric,ratio,ci95_low,ci95_high,wins,n" in capsys.readouterr().out.replace("n_nodes,", "")
+
+
+def test_paper_figures_use_the_papers_reward_extremes_and_either_link():
+    from swiptopt.benchmark.experiment import paper_figures
+
+    builtins = builtin_experiments()
+    default = paper_figures()
+    assert all(builtins[e.name] == e for e in default)  # the built-ins are these
+    by_name = {e.name: e for e in default}
+    for name in ("fig-throughput-vs-nodes", "fig-steps-to-data-target", "fig-efficiency-vs-nodes",
+                 "fig-efficiency-per-node-vs-nodes", "fig-mobility-efficiency-vs-nodes"):
+        assert by_name[name].scenario_for({"n_nodes": 10}, 0).reward_weight == 1.0, name
+    for name in ("fig-harvested-vs-nodes", "fig-steps-to-energy-target"):
+        s = by_name[name].scenario_for({"n_nodes": 10}, 0)
+        assert (s.reward_weight, s.split_ratio) == (0.0, 0.0), name
+    # the efficiency readings share their tasks: one run serves the four figures
+    keys = {name: [t.key for t in by_name[name].tasks()] for name in ("fig-efficiency-vs-nodes", "fig-mobility-efficiency-vs-nodes")}
+    assert keys["fig-efficiency-vs-nodes"] == keys["fig-mobility-efficiency-vs-nodes"]
+    uplink = paper_figures("uplink")
+    assert uplink and all(e.name.endswith("-uplink") for e in uplink)
+    assert all(e.scenario_for(e.points()[0], 0).link == "uplink" for e in uplink)
+    assert {e.name for e in paper_figures("downlink_split")} == set(by_name)
+    assert {t.key for t in paper_figures("downlink_split")[1].tasks()} == {t.key for t in default[1].tasks()}
