@@ -240,7 +240,7 @@ PER_LAYOUT, ACROSS_LAYOUTS = "per_layout", "across_layouts"
 EXPANSION_SETTINGS = (TRAINING_SEEDS,)
 
 _DEEP_COMMON = {
-    "timesteps": Setting(default=100_000, kind="int", lo=1, hi=10**9, quick=2048,
+    "timesteps": Setting(default=100_000, kind="int", lo=1, hi=10**9, quick=1024,
                          doc="environment steps of training (per model)"),
     "net_arch": Setting(default=[64, 64], kind=INTS, lo=1, hi=4096,
                         doc="hidden layer widths of the policy (and value) network"),
@@ -260,10 +260,9 @@ _SB3_NAMES = {"discount": "gamma"}
 _NOT_SB3 = ("timesteps", "net_arch", TRAINING, TRAINING_SEEDS)
 
 _PPO = {
-    "n_steps": Setting(default=None, kind="int", lo=2, hi=1_000_000, optional=True,
-                       doc="steps per rollout (default: SB3's, 2048)"),
-    "batch_size": Setting(default=None, kind="int", lo=2, hi=1_000_000, optional=True,
-                          doc="minibatch size (default: SB3's, 64)"),
+    # SB3's defaults, written out so that --quick can shorten the rollouts
+    "n_steps": Setting(default=2048, kind="int", lo=2, hi=1_000_000, quick=256, doc="steps per rollout"),
+    "batch_size": Setting(default=64, kind="int", lo=2, hi=1_000_000, doc="minibatch size"),
 }
 _DQN = {
     # SB3's default buffer (a million transitions of 4 + 6 n floats) needs gigabytes; a

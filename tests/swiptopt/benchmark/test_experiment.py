@@ -257,7 +257,7 @@ def test_sizes_that_cannot_fit_fail_fast_with_the_size_and_the_limit(monkeypatch
         experiment(sweep={"split_ratio": [i / 800_000 for i in range(800_000)]}, layouts=1)
     assert "800,000 sweep points" in str(info.value) and "100,000" in str(info.value)
     assert "SWIPTOPT_MAX_TASKS" in str(info.value) and info.value.field == "sweep"
-    with pytest.raises(ConfigError, match=r"100,000 layouts x 1 algorithms x 1,000 seeds\): 100,000,000, over"):
+    with pytest.raises(ConfigError, match=r"100,000 layouts x 1,000 \(algorithm, seed\) pairs\): 100,000,000, over"):
         experiment(layouts=100_000, seeds=1000)
     with pytest.raises(ConfigError, match="evaluation episodes .* SWIPTOPT_MAX_EVALUATION_EPISODES"):
         experiment(layouts=1000, episodes=100_000)
