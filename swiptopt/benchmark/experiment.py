@@ -412,7 +412,7 @@ _COMPARE_DEEP = {
 }
 #: The generalisation experiment: deep RL trained on layouts 1000..1199, evaluated on the
 #: held-out layouts 0..9, at a larger budget than the standard suite's.
-GENERALISATION_TIMESTEPS = 100_000
+GENERALISATION_TIMESTEPS = 50_000
 GENERALISATION_TRAINING = {"start": 1000, "count": 200}
 
 
