@@ -1,9 +1,11 @@
 """Deep-RL contenders: Stable-Baselines3's PPO and DQN on the ``vector`` observation.
 
-One entry point trains either (:func:`train_deep`); models are saved in SB3's own ``.zip``
-format and loaded back (:func:`load_deep`); :func:`deep_config_hash` names a training
-configuration, so that :func:`train_or_load_deep` (and the benchmark) reuse a stored model
-whose configuration matches instead of training it again.
+One entry point trains either (:func:`train_deep`), or any other SB3 algorithm named by its
+class (``"stable_baselines3:A2C"``); models are saved in SB3's own ``.zip`` format, with the
+hash of their configuration inside, and loaded back (:func:`load_deep`);
+:func:`deep_config_hash` names a training configuration, so that :func:`train_or_load_deep`
+(and the benchmark) reuse a stored model whose configuration matches instead of training it
+again. Processes that want the same model at once train it once (a lock file beside it).
 
 Reproducible on the CPU: the same configuration gives the same trained model, bit for bit,
 on any run. :func:`pin_torch` runs torch on one thread (intra- and inter-op) with
