@@ -7,6 +7,10 @@ evaluated as the benchmark evaluates a task (10 episodes on the evaluation seeds
 ``1000 * layout + seed + 1_000_003``); ``--references`` adds k-means + TSP and Q-learning on
 the same layouts and evaluation seeds.
 
+With ``--across``, one model per seed is trained across layouts 0..L-1 (a layout drawn per
+episode, SB3 seeded with the seed itself), as the ``compare`` suite trains them, and each
+checkpoint evaluates it on every layout (the row's layout is then the evaluation layout).
+
 Training runs in stages (``--stages 100000 300000``), every (seed, layout) through a stage
 before any goes on to the next, so early stages' numbers come first. PPO goes on training
 the same models (its schedules are constant, so the checkpoints are those of one long run);
@@ -17,7 +21,7 @@ per seed and checkpoint.
 
     python benchmarks/deeprl_budget.py --algorithm ppo [--seeds 0 1 2] [--layouts 3]
         [--stages 100000 300000] [--checkpoints 25000 50000 100000 150000 200000 300000]
-        [--out deeprl_budget.jsonl] [--references]
+        [--out deeprl_budget.jsonl] [--references] [--across]
 """
 
 from __future__ import annotations
@@ -54,42 +58,58 @@ def references(layouts: int) -> dict[str, list[float]]:
     return out
 
 
-def _model(algorithm: str, layout: int, seed: int) -> Any:
+def _model(algorithm: str, layout: int, seed: int, across: int = 0) -> Any:
+    """A fresh model on ``layout`` (task seed 1000 x layout + seed), or with ``across``
+    layouts on layouts 0..across-1 drawn per episode (SB3 seed: the seed itself)."""
     scenario = Scenario.preset("paper", n_nodes=25, layout_seed=layout)
     pin_torch()
+    if across:
+        env = AuvSwiptEnv(scenario, observation=OBSERVATION, layout_seeds=range(across))
+        return _algorithm_class(algorithm)("MlpPolicy", env, seed=seed, device="cpu")
     env = AuvSwiptEnv(scenario, observation=OBSERVATION)
     return _algorithm_class(algorithm)("MlpPolicy", env, seed=1000 * layout + seed, device="cpu")
 
 
-def train_stage(model: Any, algorithm: str, layout: int, seed: int, stage: int, checkpoints: list[int], out: Path) -> None:
-    """Train ``model`` up to ``stage`` timesteps, evaluating it at the checkpoints passed."""
+def train_stage(model: Any, algorithm: str, layouts: list[int], seed: int, stage: int, checkpoints: list[int],
+                out: Path) -> None:
+    """Train ``model`` up to ``stage`` timesteps, evaluating it on each of ``layouts`` at the
+    checkpoints passed."""
     from stable_baselines3.common.callbacks import BaseCallback
-
-    scenario = Scenario.preset("paper", n_nodes=25, layout_seed=layout)
-    eval_env = AuvSwiptEnv(scenario, observation=OBSERVATION)
-    eval_seed = 1000 * layout + seed + EVALUATION_OFFSET
 
     class Checkpoints(BaseCallback):
         def _on_step(self) -> bool:
             if self.num_timesteps in checkpoints and self.num_timesteps <= stage:
-                result = evaluate(self.model, eval_env, EPISODES, seed=eval_seed)
-                row = {
-                    "algorithm": algorithm, "layout": layout, "seed": seed, "timesteps": self.num_timesteps,
-                    "budget": stage, "return": result.summary["return"].mean,
-                    "data_bits": result.summary["data_bits"].mean,
-                }
-                with out.open("a", encoding="utf-8") as f:
-                    f.write(json.dumps(row) + "\n")
+                for layout in layouts:
+                    eval_env = AuvSwiptEnv(Scenario.preset("paper", n_nodes=25, layout_seed=layout),
+                                           observation=OBSERVATION)
+                    result = evaluate(self.model, eval_env, EPISODES, seed=1000 * layout + seed + EVALUATION_OFFSET)
+                    row = {
+                        "algorithm": algorithm, "layout": layout, "seed": seed, "timesteps": self.num_timesteps,
+                        "budget": stage, "return": result.summary["return"].mean,
+                        "data_bits": result.summary["data_bits"].mean, "across": len(layouts) > 1,
+                    }
+                    with out.open("a", encoding="utf-8") as f:
+                        f.write(json.dumps(row) + "\n")
             return True
 
     model.learn(stage - model.num_timesteps, callback=Checkpoints(), reset_num_timesteps=False)
 
 
-def run(algorithm: str, seeds: list[int], layouts: int, stages: list[int], checkpoints: list[int], out: Path) -> None:
+def run(algorithm: str, seeds: list[int], layouts: int, stages: list[int], checkpoints: list[int], out: Path,
+        across: bool = False) -> None:
     kept: dict[tuple[int, int], Any] = {}  # PPO's models go on from stage to stage
     previous = 0
     for stage in stages:
         for seed in seeds:
+            if across:
+                if algorithm == "ppo":
+                    model = kept.setdefault((seed, -1), _model(algorithm, 0, seed, layouts))
+                    wanted = [c for c in checkpoints if previous < c <= stage]
+                else:
+                    model = _model(algorithm, 0, seed, layouts)
+                    wanted = [c for c in checkpoints if c <= stage and (c > previous or c == stage)]
+                train_stage(model, algorithm, list(range(layouts)), seed, stage, wanted, out)
+                continue
             for layout in range(layouts):
                 if algorithm == "ppo":
                     model = kept.setdefault((seed, layout), _model(algorithm, layout, seed))
@@ -97,7 +117,7 @@ def run(algorithm: str, seeds: list[int], layouts: int, stages: list[int], check
                 else:
                     model = _model(algorithm, layout, seed)
                     wanted = [c for c in checkpoints if c <= stage and (c > previous or c == stage)]
-                train_stage(model, algorithm, layout, seed, stage, wanted, out)
+                train_stage(model, algorithm, [layout], seed, stage, wanted, out)
         previous = stage
 
 
@@ -129,9 +149,12 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("deeprl_budget.jsonl"))
     parser.add_argument("--summary-only", action="store_true")
     parser.add_argument("--references", action="store_true", help="also evaluate k-means + TSP and Q-learning")
+    parser.add_argument("--across", action="store_true",
+                        help="one model per seed across the layouts (as compare trains), not one per layout")
     args = parser.parse_args()
     if not args.summary_only:
-        run(args.algorithm, args.seeds, args.layouts, sorted(args.stages), sorted(args.checkpoints), args.out)
+        run(args.algorithm, args.seeds, args.layouts, sorted(args.stages), sorted(args.checkpoints), args.out,
+            args.across)
     summary(args.out, references(args.layouts) if args.references else None)
 
 

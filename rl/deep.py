@@ -1,9 +1,11 @@
 """Deep-RL contenders: Stable-Baselines3's PPO and DQN on the ``vector`` observation.
 
-One entry point trains either (:func:`train_deep`); models are saved in SB3's own ``.zip``
-format and loaded back (:func:`load_deep`); :func:`deep_config_hash` names a training
-configuration, so that :func:`train_or_load_deep` (and the benchmark) reuse a stored model
-whose configuration matches instead of training it again.
+One entry point trains either (:func:`train_deep`), or any other SB3 algorithm named by its
+class (``"stable_baselines3:A2C"``); models are saved in SB3's own ``.zip`` format, with the
+hash of their configuration inside, and loaded back (:func:`load_deep`);
+:func:`deep_config_hash` names a training configuration, so that :func:`train_or_load_deep`
+(and the benchmark) reuse a stored model whose configuration matches instead of training it
+again. Processes that want the same model at once train it once (a lock file beside it).
 
 Reproducible on the CPU: the same configuration gives the same trained model, bit for bit,
 on any run. :func:`pin_torch` runs torch on one thread (intra- and inter-op) with
@@ -18,12 +20,14 @@ Stable-Baselines3 and torch (the ``deeprl`` extra) load inside the functions tha
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import inspect
 import json
 import math
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
@@ -37,8 +41,15 @@ from swiptopt.env import INFO_KEY, AuvSwiptEnv, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import Scenario
 
-#: The algorithms :func:`train_deep` trains, by name, with their SB3 class.
+#: The algorithms :func:`train_deep` trains, by name, with their SB3 class. Any other SB3
+#: algorithm is named by its class as ``"package.module:Class"`` (``"stable_baselines3:A2C"``).
 DEEP_ALGORITHMS = {"dqn": "DQN", "ppo": "PPO"}
+#: ``"package.module:Class"``: an algorithm class named by where it lives.
+CLASS_PATH = re.compile(r"[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*")
+#: The attribute a saved model carries with the :func:`deep_config_hash` it was trained for
+#: (SB3 saves a model's plain attributes in its zip): a file under a hashed name that holds
+#: another model is recognised as such.
+HASH_ATTRIBUTE = "swiptopt_config_hash"
 
 #: SB3 constructor arguments :func:`train_deep` sets itself (never through ``hyperparams``).
 _RESERVED = ("policy", "env", "seed", "device", "policy_kwargs", "verbose", "tensorboard_log", "_init_setup_model")
@@ -47,14 +58,46 @@ _RESERVED = ("policy", "env", "seed", "device", "policy_kwargs", "verbose", "ten
 OBSERVATION = "vector"
 
 
+def _check_algorithm(algorithm: Any) -> str:
+    if isinstance(algorithm, str) and (algorithm in DEEP_ALGORITHMS or CLASS_PATH.fullmatch(algorithm)):
+        return algorithm
+    raise ConfigError(
+        f"unknown deep-RL algorithm {algorithm!r}{did_you_mean(algorithm, DEEP_ALGORITHMS)}: "
+        f"choose one of {sorted(DEEP_ALGORITHMS)} or name an SB3 algorithm class as 'package.module:Class'",
+        "algorithm",
+    )
+
+
 def _algorithm_class(algorithm: str) -> type:
+    """The SB3 class of ``algorithm`` (a name of :data:`DEEP_ALGORITHMS` or a class path)."""
+    import importlib
+
     try:
-        import stable_baselines3
+        from stable_baselines3.common.base_class import BaseAlgorithm
     except ImportError:  # pragma: no cover - depends on the installation
         raise ConfigError(
             "deep RL needs Stable-Baselines3: pip install 'swiptopt[deeprl]'", "algorithm"
         ) from None
-    return getattr(stable_baselines3, DEEP_ALGORITHMS[algorithm])
+    module_name, _, qualname = (
+        ("stable_baselines3", "", DEEP_ALGORITHMS[algorithm]) if algorithm in DEEP_ALGORITHMS
+        else _check_algorithm(algorithm).partition(":")
+    )
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as exc:
+        raise ConfigError(f"deep-RL algorithm {algorithm!r} cannot be loaded: {type(exc).__name__}: {exc}",
+                          "algorithm") from None
+    if not (isinstance(obj, type) and issubclass(obj, BaseAlgorithm)):
+        raise ConfigError(f"deep-RL algorithm {algorithm!r} is not a Stable-Baselines3 algorithm class", "algorithm")
+    return obj
+
+
+def _file_stem(algorithm: str) -> str:
+    """A file-name-safe form of an algorithm's name (a class path's class, in lower case)."""
+    name = algorithm.rpartition(":")[2].rpartition(".")[2].lower() if ":" in algorithm else algorithm
+    return re.sub(r"[^A-Za-z0-9_-]+", "_", name)
 
 
 def _check_int(name: str, value: Any, low: int) -> int:
@@ -68,7 +111,8 @@ class DeepConfig:
     """One deep-RL training run, validated at construction."""
 
     algorithm: str
-    """``"ppo"`` or ``"dqn"`` (:data:`DEEP_ALGORITHMS`)."""
+    """``"ppo"`` or ``"dqn"`` (:data:`DEEP_ALGORITHMS`), or an SB3 algorithm class as
+    ``"package.module:Class"``."""
     timesteps: int
     """Environment steps of training."""
     seed: int = 0
@@ -83,12 +127,7 @@ class DeepConfig:
     ``range`` stays a range (it names its layouts by start, stop and step)."""
 
     def __post_init__(self) -> None:
-        if self.algorithm not in DEEP_ALGORITHMS:
-            raise ConfigError(
-                f"unknown deep-RL algorithm {self.algorithm!r}{did_you_mean(self.algorithm, DEEP_ALGORITHMS)}: "
-                f"choose one of {sorted(DEEP_ALGORITHMS)}",
-                "algorithm",
-            )
+        _check_algorithm(self.algorithm)
         object.__setattr__(self, "timesteps", _check_int("timesteps", self.timesteps, 1))
         object.__setattr__(self, "seed", _check_int("seed", self.seed, 0))
         for name in ("hyperparams", "policy_kwargs"):
@@ -155,6 +194,8 @@ class DeepResult:
     episode_returns: np.ndarray
     loaded: bool = False
     """Whether the model was loaded from a stored file instead of trained."""
+    note: str = ""
+    """What happened to a stored model that could not be used (it was replaced)."""
 
     def predict(self, obs: Any, deterministic: bool = True) -> Any:
         """The model's ``predict``, so a result is a policy itself."""
@@ -317,9 +358,13 @@ def train_deep(
 def save_deep(result: DeepResult | Any, path: str | Path) -> Path:
     """Save a model (or a :class:`DeepResult`'s) in SB3's ``.zip`` format at ``path``.
 
-    Written to a temporary file beside it and renamed, so ``path`` is either absent or whole.
+    Written to a temporary file beside it and renamed, so ``path`` is either absent or whole
+    (two processes saving the same model leave one whole file). A result's configuration
+    hash travels in the file (:data:`HASH_ATTRIBUTE`), so :func:`load_deep` can check it.
     """
     model = result.model if isinstance(result, DeepResult) else result
+    if isinstance(result, DeepResult) and result.config_hash is not None:
+        setattr(model, HASH_ATTRIBUTE, result.config_hash)
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -331,25 +376,50 @@ def save_deep(result: DeepResult | Any, path: str | Path) -> Path:
     return path
 
 
-def load_deep(path: str | Path, algorithm: str) -> Any:
+def load_deep(path: str | Path, algorithm: str, *, config_hash: str | None = None) -> Any:
     """Load an SB3 model of ``algorithm`` saved by :func:`save_deep` (on the CPU).
 
-    A missing file or one that is not a saved ``algorithm`` model is a
-    :class:`~swiptopt.ConfigError` naming the path.
+    A missing file, one that is not a saved ``algorithm`` model, or (with ``config_hash``)
+    one saved for another configuration is a :class:`~swiptopt.ConfigError` naming the path.
     """
-    if algorithm not in DEEP_ALGORITHMS:
-        raise ConfigError(
-            f"unknown deep-RL algorithm {algorithm!r}: choose one of {sorted(DEEP_ALGORITHMS)}", "algorithm"
-        )
+    _check_algorithm(algorithm)
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"no saved model at {path}", "path")
     cls = _algorithm_class(algorithm)
     pin_torch()
     try:
-        return cls.load(path, device="cpu")
+        model = cls.load(path, device="cpu")
     except Exception as exc:  # SB3 raises many types for a corrupt or foreign file
         raise ConfigError(f"{path} is not a saved {algorithm} model: {type(exc).__name__}: {exc}", "path") from None
+    if config_hash is not None and getattr(model, HASH_ATTRIBUTE, None) != config_hash:
+        raise ConfigError(f"{path} holds a model trained for another configuration than {config_hash[:12]}", "path")
+    return model
+
+
+@contextlib.contextmanager
+def _exclusive(path: Path) -> Any:
+    """Hold an exclusive lock on ``path`` (created if needed) while the block runs, so
+    processes that want the same model train it once: the others wait, then load it.
+    Where ``fcntl`` is missing (Windows) there is no lock: the atomic save still leaves one
+    whole file, and a model may be trained twice, identically."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    with open(path, "a+b") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes or the process dies
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def model_path(directory: str | Path, config: DeepConfig, scenario: Scenario) -> Path:
+    """Where :func:`train_or_load_deep` keeps the model of ``config`` on ``scenario``:
+    ``directory/<algorithm>-<deep_config_hash>.zip``."""
+    return Path(directory) / f"{_file_stem(config.algorithm)}-{deep_config_hash(config, scenario)}.zip"
 
 
 def train_or_load_deep(
@@ -367,23 +437,34 @@ def train_or_load_deep(
 
     The file is named by :func:`deep_config_hash`, so a stored model is reused only for the
     very configuration (and library versions) it was trained with; a new one is saved there.
+    Processes asking for the same model at once train it once (a lock file beside it): the
+    first trains and saves, the others wait and load. A file there that cannot be loaded,
+    or holds a model of another configuration, is replaced by a fresh training (the result's
+    ``note`` says so): the hash names the configuration, so the new model is the right one.
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
     config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
     key = deep_config_hash(config, scenario)
-    path = Path(directory) / f"{algorithm}-{key}.zip"
-    if path.is_file():
-        return DeepResult(load_deep(path, algorithm), config, key, 0.0, np.zeros(0), loaded=True)
-    result = train_deep(
-        algorithm,
-        scenario,
-        timesteps,
-        seed,
-        hyperparams=hyperparams,
-        policy_kwargs=policy_kwargs,
-        layout_seeds=layout_seeds,
-    )
+    path = model_path(directory, config, scenario)
     path.parent.mkdir(parents=True, exist_ok=True)
-    save_deep(result, path)
-    return dataclasses.replace(result, config_hash=key)
+    note = ""
+    with _exclusive(path.with_name(path.name + ".lock")):
+        if path.is_file():
+            try:
+                model = load_deep(path, algorithm, config_hash=key)
+            except ConfigError as exc:
+                note = f"retrained: the stored model could not be used ({exc})"
+            else:
+                return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True)
+        result = train_deep(
+            algorithm,
+            scenario,
+            timesteps,
+            seed,
+            hyperparams=hyperparams,
+            policy_kwargs=policy_kwargs,
+            layout_seeds=layout_seeds,
+        )
+        save_deep(result, path)
+    return dataclasses.replace(result, config_hash=key, note=note)

@@ -240,7 +240,9 @@ class _DescribesSuite(click.Command):
         rows = [
             ("scenario", scenario),
             ("algorithms", ", ".join(suite.algorithms)),
-            ("layouts", f"{suite.layouts} node layouts (layout seeds 0..{suite.layouts - 1}), {suite.seeds} seed each"),
+            ("layouts", f"{len(suite.layout_seeds())} node layouts (layout seeds "
+                        f"{', '.join(map(str, suite.layout_seeds()))}), {suite.seeds} seed each "
+                        "(deep RL: its training_seeds)"),
             ("episodes", f"{suite.episodes} greedy evaluation episodes per task"),
             ("baseline", suite.baseline or "none"),
         ]

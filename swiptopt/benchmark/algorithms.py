@@ -16,12 +16,28 @@ To add an algorithm, add an :class:`Algorithm` to :data:`ALGORITHMS`: its settin
 with its value under ``--quick``, when a smoke test should shrink it), a ``build`` function
 and, when a task should record more than its episodes (a solver's bound and status), a
 ``record`` function. The validation tests, ``--quick`` and the runner pick it up from there.
+
+Algorithms from outside the project (plugins) are registered without editing it, in either
+of two ways; both name a *factory*, a function of no arguments that returns an
+:class:`Algorithm` (:func:`sb3_algorithm` makes one for any Stable-Baselines3 algorithm):
+
+- an entry point in the group ``swiptopt.algorithms`` of an installed distribution
+  (``[project.entry-points."swiptopt.algorithms"] a2c = "my_algorithms:a2c"``): the
+  algorithm is then known by the entry point's name everywhere;
+- ``[plugins] a2c = "my_algorithms:a2c"`` in an experiment file, for that experiment (the
+  module must be importable: on ``PYTHONPATH`` or installed).
+
+Each algorithm acts on one observation of the environment (``observation``: ``"tabular"``
+for the paper's agents, ``"vector"`` for deep RL; planners read the environment itself). An
+experiment may say ``observation = ...`` among an algorithm's settings; any other value
+than the algorithm's own is refused, naming it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 from planners.optimal import BUDGETS
@@ -50,30 +66,83 @@ class Setting(Spec):
         """The upper end in force (the limit's current value where there is one)."""
         return getattr(limits(), self.limit) if self.limit else self.hi
 
+    def allowed(self, hi: float | None = None) -> str:
+        if self.kind == INTS:
+            return f"a list of 1 to {MAX_LIST_ITEMS} integers in [{self.lo:g}, {self.hi:g}]"
+        return super().allowed(hi)
+
+
+#: The kind of a setting that holds a list of integers (a network's layer widths).
+INTS = "ints"
+#: The longest list an ``ints`` setting holds.
+MAX_LIST_ITEMS = 16
+
+
+def check_setting(where: str, value: Any, spec: Setting, key: str) -> Any:
+    """``value`` checked against ``spec`` (:func:`swiptopt.validation.check_value`, plus
+    lists of integers), normalised; a :class:`ConfigError` naming ``where`` otherwise."""
+    if spec.kind != INTS:
+        return check_value(where, value, spec, field=key)
+    if value is None and spec.optional:
+        return None
+    if isinstance(value, tuple):
+        value = list(value)
+    if not isinstance(value, list) or not 1 <= len(value) <= MAX_LIST_ITEMS:
+        raise ConfigError(f"{where} = {value!r} is not allowed: must be {spec.allowed()}", key)
+    item = Spec(kind="int", lo=spec.lo, hi=spec.hi)
+    try:
+        return [check_value(where, v, item, field=key) for v in value]
+    except ConfigError:
+        raise ConfigError(f"{where} = {value!r} is not allowed: must be {spec.allowed()}", key) from None
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """What a task knows beyond (environment, settings, seed), for algorithms that need it.
+
+    ``scenario`` is the task's scenario (its layout); ``seed_index`` the task's seed within
+    its layout (0, 1, ...: the training seed of a model trained across layouts);
+    ``training_layouts`` the experiment's training layouts (``None`` without); ``models_dir``
+    where trained models are kept and reused (``None``: nowhere, train in memory).
+    """
+
+    scenario: Any
+    seed_index: int = 0
+    training_layouts: tuple[int, ...] | None = None
+    models_dir: str | None = None
+
 
 @dataclass(frozen=True)
 class Algorithm:
     """A named algorithm: its family, its settings, how to build it and what its tasks record.
 
-    ``build(env, settings, seed)`` returns the policy (trained, for RL); ``record(policy,
-    env)``, called after the evaluation, returns what the task stores beside its episodes
-    (:func:`task_extra`).
+    ``build(env, settings, seed, context)`` returns the policy (trained, for RL) for the
+    environment ``env`` (:class:`BuildContext` says the rest); ``record(policy, env)``,
+    called after the evaluation, returns what the task stores beside its episodes
+    (:func:`task_extra`). ``observation`` is the observation the policy acts on
+    (``"tabular"``, ``"vector"``, or ``None`` for planners, which read the environment);
+    ``modules`` are native libraries the runner imports before its workers start (so their
+    thread pools are limited to one thread); ``trains_model`` marks algorithms whose
+    training dominates a task's time (the runner starts those first).
     """
 
     name: str
     label: str
     family: str
     settings: dict[str, Setting] = field(default_factory=dict)
-    build: Callable[[Any, dict[str, Any], int], Any] | None = None
+    build: Callable[[Any, dict[str, Any], int, BuildContext], Any] | None = None
     record: Callable[[Any, Any], dict[str, Any]] | None = None
+    observation: str | None = None
+    modules: tuple[str, ...] = ()
+    trains_model: bool = False
 
     @property
     def defaults(self) -> dict[str, Any]:
         return {key: s.default for key, s in self.settings.items()}
 
 
-def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int], Any]:
-    def build(env: Any, settings: dict[str, Any], seed: int) -> Any:
+def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+    def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
         from rl import TabularConfig, make_agent, train
 
         settings = dict(settings)
@@ -88,10 +157,10 @@ def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int], Any]:
     return build
 
 
-def _planner(cls_name: str, *, seeded: bool = False) -> Callable[[Any, dict[str, Any], int], Any]:
+def _planner(cls_name: str, *, seeded: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     """Build ``planners.<cls_name>`` from the settings (and the task's seed when ``seeded``)."""
 
-    def build(env: Any, settings: dict[str, Any], seed: int) -> Any:
+    def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
         import planners
 
         cls = getattr(planners, cls_name)
@@ -100,7 +169,7 @@ def _planner(cls_name: str, *, seeded: bool = False) -> Callable[[Any, dict[str,
     return build
 
 
-def _milp(env: Any, settings: dict[str, Any], seed: int) -> Any:
+def _milp(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
     """The MILP's plan as a policy: the named budget, with the overrides that are set. The
     task's seed is not used: the solve is the same for every seed."""
     import dataclasses
@@ -161,16 +230,119 @@ _TABULAR = {
     "epsilon_decay": Setting(default=0.999, lo=0, lo_open=True, hi=1, doc="epsilon factor per episode"),
     "epsilon_min": Setting(default=0.001, lo=0, hi=1, doc="floor of epsilon"),
 }
+# ------------------------------------------------------------------ deep RL
+
+#: The settings of a deep-RL algorithm that say how it trains, not what SB3 is given.
+TRAINING = "training"
+TRAINING_SEEDS = "training_seeds"
+PER_LAYOUT, ACROSS_LAYOUTS = "per_layout", "across_layouts"
+#: Settings that shape the experiment's tasks, not a task's result (left out of its key).
+EXPANSION_SETTINGS = (TRAINING_SEEDS,)
+
+_DEEP_COMMON = {
+    "timesteps": Setting(default=100_000, kind="int", lo=1, hi=10**9, quick=1024,
+                         doc="environment steps of training (per model)"),
+    "net_arch": Setting(default=[64, 64], kind=INTS, lo=1, hi=4096,
+                        doc="hidden layer widths of the policy (and value) network"),
+    "learning_rate": Setting(default=None, lo=0, lo_open=True, hi=1, optional=True,
+                             doc="optimiser step size (default: Stable-Baselines3's for the algorithm)"),
+    "discount": Setting(default=None, lo=0, hi=1, optional=True, doc="discount factor gamma (default: SB3's, 0.99)"),
+    TRAINING: Setting(default=PER_LAYOUT, kind="str", choices=(PER_LAYOUT, ACROSS_LAYOUTS),
+                      doc="'per_layout': a model per task, trained on the task's layout with the task's seed; "
+                          "'across_layouts': one model per training seed, trained on the experiment's "
+                          "training_layouts (one drawn per episode) and evaluated on every layout"),
+    TRAINING_SEEDS: Setting(default=3, kind="int", lo=1, hi=100, quick=1,
+                            doc="training seeds per layout (replaces the experiment's 'seeds' for this algorithm)"),
+}
+#: SB3 constructor arguments under another name in the settings.
+_SB3_NAMES = {"discount": "gamma"}
+#: Settings of the deep algorithms that are not SB3 constructor arguments.
+_NOT_SB3 = ("timesteps", "net_arch", TRAINING, TRAINING_SEEDS)
+
+_PPO = {
+    # SB3's defaults, written out so that --quick can shorten the rollouts
+    "n_steps": Setting(default=2048, kind="int", lo=2, hi=1_000_000, quick=256, doc="steps per rollout"),
+    "batch_size": Setting(default=64, kind="int", lo=2, hi=1_000_000, doc="minibatch size"),
+}
+_DQN = {
+    # SB3's default buffer (a million transitions of 4 + 6 n floats) needs gigabytes; a
+    # tenth of it holds the whole of a 100 000-step run
+    "buffer_size": Setting(default=100_000, kind="int", lo=1, hi=10**8, doc="replay buffer, transitions"),
+    "learning_starts": Setting(default=None, kind="int", lo=0, hi=10**9, optional=True,
+                               doc="steps before learning starts (default: SB3's, 100)"),
+    "exploration_fraction": Setting(default=None, lo=0, lo_open=True, hi=1, optional=True,
+                                    doc="fraction of training over which epsilon decays (default: SB3's, 0.1)"),
+}
+
+
+def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
+    """The SB3 constructor arguments among resolved deep-RL settings (unset ones left out,
+    so SB3's defaults apply and do not enter the model's hash)."""
+    return {_SB3_NAMES.get(k, k): v for k, v in settings.items()
+            if k not in _NOT_SB3 and v is not None}
+
+
+def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+    """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path)."""
+
+    def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
+        from rl.deep import train_deep, train_or_load_deep
+
+        scenario = context.scenario
+        layouts = None
+        if settings[TRAINING] == ACROSS_LAYOUTS:
+            if not context.training_layouts:
+                raise ConfigError("training = 'across_layouts' needs the experiment's training_layouts",
+                                  "training_layouts")
+            layouts = tuple(context.training_layouts)
+            scenario = scenario.replace(layout_seed=layouts[0])
+            seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
+        arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
+                         layout_seeds=layouts)
+        if context.models_dir is None:
+            return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
+        return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed, **arguments)
+
+    return build
+
+
+def _deep_record(policy: Any, env: Any) -> dict[str, Any]:
+    """A deep-RL task's model: its hash, its training seed, whether it was loaded, the
+    training time (0 when loaded) and what happened to an unusable stored model."""
+    out = {"model": policy.config_hash, "training_seed": policy.config.seed, "model_loaded": policy.loaded,
+           "train_seconds": policy.train_seconds}
+    if getattr(policy, "note", ""):
+        out["model_note"] = policy.note
+    return out
+
+
+def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = None, *, name: str = "") -> Algorithm:
+    """A benchmark algorithm for a Stable-Baselines3 algorithm on the ``vector`` observation.
+
+    ``sb3`` is ``"ppo"``, ``"dqn"`` or a class as ``"package.module:Class"`` (e.g.
+    ``"stable_baselines3:A2C"``). It gets the common deep-RL settings (``timesteps``,
+    ``net_arch``, ``learning_rate``, ``discount``, ``training``, ``training_seeds``) and
+    ``settings`` (more SB3 constructor arguments, under their own names). Models are kept
+    under the results directory and reused when a task's configuration matches. ``name``
+    defaults to the registered name (the entry point's or the ``[plugins]`` key).
+    """
+    return Algorithm(name or label.lower(), label, "rl", {**_DEEP_COMMON, **(settings or {})}, _deep(sb3),
+                     _deep_record, observation="vector", modules=("torch",), trains_model=True)
+
+
 _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
 
 ALGORITHMS: dict[str, Algorithm] = {
     a.name: a
     for a in (
-        Algorithm("q_learning", "Q-learning", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("q_learning")),
-        Algorithm("sarsa", "SARSA", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("sarsa")),
+        Algorithm("q_learning", "Q-learning", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("q_learning"),
+                  observation="tabular"),
+        Algorithm("sarsa", "SARSA", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("sarsa"), observation="tabular"),
         Algorithm("random", "random", "rl", {**_RL_TRAINING, "train_episodes": Setting(
             default=0, kind="int", lo=0, limit="max_training_episodes", doc="ignored: the random agent learns nothing",
-        )}, _rl("random")),
+        )}, _rl("random"), observation="tabular"),
+        sb3_algorithm("ppo", "PPO", _PPO, name="ppo"),
+        sb3_algorithm("dqn", "DQN", _DQN, name="dqn"),
         Algorithm(
             "kmeans_tsp",
             "k-means + TSP",
@@ -241,6 +413,121 @@ ALGORITHMS: dict[str, Algorithm] = {
 }
 
 
+# ------------------------------------------------------------------ the registry
+
+#: The entry-point group through which installed distributions add algorithms.
+ENTRY_POINT_GROUP = "swiptopt.algorithms"
+#: A plugin's factory: ``package.module:function`` (dotted attribute path allowed).
+FACTORY_PATTERN = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
+#: An algorithm's name: it names table rows and settings keys.
+NAME_PATTERN = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+#: Where each observation comes from, for the error that names the valid choices.
+OBSERVATIONS = ("tabular", "vector")
+
+#: Algorithms registered from outside the project, by name, with the factory they came from.
+_PLUGINS: dict[str, tuple[str, Algorithm]] = {}
+
+
+def _check_plugin(name: str, source: str, made: Any, where: str) -> Algorithm:
+    if not isinstance(made, Algorithm):
+        raise ConfigError(
+            f"{where} = {source!r} returned {type(made).__name__}, not a swiptopt.benchmark.algorithms.Algorithm "
+            "(sb3_algorithm(...) makes one for a Stable-Baselines3 algorithm)",
+            name,
+        )
+    if not callable(made.build):
+        raise ConfigError(f"{where} = {source!r} returned an Algorithm without a build function", name)
+    if not isinstance(made.settings, dict) or not all(
+            isinstance(k, str) and isinstance(v, Setting) for k, v in made.settings.items()):
+        raise ConfigError(f"{where} = {source!r} returned an Algorithm whose settings are not Settings by name", name)
+    if made.observation not in (None, *OBSERVATIONS):
+        raise ConfigError(f"{where} = {source!r} returned an Algorithm with observation {made.observation!r}: "
+                          f"one of {', '.join(OBSERVATIONS)} or None", name)
+    return replace(made, name=name)
+
+
+def load_plugin(name: str, source: Any, where: str = "") -> Algorithm:
+    """Register the algorithm made by the factory ``source`` (``"package.module:function"``)
+    under ``name`` and return it; anything wrong (a name taken by a built-in algorithm, a
+    module that does not import, a missing factory, one that fails or returns something else
+    than an :class:`Algorithm`) is a :class:`ConfigError` naming ``where``."""
+    import importlib
+
+    where = where or f"plugins.{name}"
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise ConfigError(f"{where}: {name!r} is not allowed as an algorithm's name: a letter, then up to 63 "
+                          "letters, digits, '_' or '-'", "plugins")
+    if name in ALGORITHMS:
+        raise ConfigError(f"{where}: {name!r} is a built-in algorithm; give the plugin another name", name)
+    if not isinstance(source, str) or not FACTORY_PATTERN.fullmatch(source):
+        raise ConfigError(f"{where} = {source!r} must name a factory as 'package.module:function'", name)
+    known = _PLUGINS.get(name)
+    if known is not None and known[0] == source:
+        return known[1]
+    module_name, _, attribute = source.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+    except Exception as exc:  # a plugin's import can fail in any way; all of them are bad input
+        raise ConfigError(f"{where} = {source!r}: cannot import {module_name!r} ({type(exc).__name__}: {exc})",
+                          name) from None
+    try:
+        for part in attribute.split("."):
+            obj = getattr(obj, part)
+    except AttributeError:
+        raise ConfigError(f"{where} = {source!r}: module {module_name!r} has no {attribute!r}", name) from None
+    if isinstance(obj, Algorithm):
+        made = obj
+    elif callable(obj):
+        try:
+            made = obj()
+        except Exception as exc:  # the factory is the plugin's code: report it in one line
+            raise ConfigError(f"{where} = {source!r}: the factory failed ({type(exc).__name__}: {exc})", name) from None
+    else:
+        raise ConfigError(f"{where} = {source!r} is neither a factory nor an Algorithm", name)
+    algorithm = _check_plugin(name, source, made, where)
+    _PLUGINS[name] = (source, algorithm)
+    return algorithm
+
+
+def _entry_point(name: str) -> str | None:
+    """The factory of the installed entry point ``name`` in :data:`ENTRY_POINT_GROUP`."""
+    from importlib import metadata
+
+    for entry in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if entry.name == name:
+            return entry.value
+    return None
+
+
+def entry_point_names() -> list[str]:
+    """The names of the algorithms installed distributions add (entry points)."""
+    from importlib import metadata
+
+    return sorted({entry.name for entry in metadata.entry_points(group=ENTRY_POINT_GROUP)})
+
+
+def get_algorithm(name: Any, plugin: str = "") -> Algorithm:
+    """The algorithm ``name``: a built-in one, a plugin (``plugin`` is its factory, from an
+    experiment's ``[plugins]``) or an installed entry point; an unknown name is a
+    :class:`ConfigError` naming the valid choices."""
+    if isinstance(name, str) and name in ALGORITHMS:
+        return ALGORITHMS[name]
+    if plugin:
+        return load_plugin(name, plugin)
+    if isinstance(name, str) and name in _PLUGINS:
+        return _PLUGINS[name][1]
+    if isinstance(name, str) and NAME_PATTERN.fullmatch(name):
+        source = _entry_point(name)
+        if source is not None:
+            return load_plugin(name, source, f"entry point {name!r} of group {ENTRY_POINT_GROUP!r}")
+    known = [*ALGORITHMS, *entry_point_names()]
+    raise ConfigError(
+        f"unknown algorithm {name!r}{did_you_mean(name, known)}: choose one of {', '.join(known)} "
+        "(or add one through [plugins] or an entry point)",
+        "algorithm",
+    )
+
+
 def _where(name: str, key: str) -> str:
     return f"algorithms.{name}.{key}"
 
@@ -248,14 +535,15 @@ def _where(name: str, key: str) -> str:
 def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
     """The algorithm's defaults updated with ``settings``, each value checked against the
     algorithm's schema and normalised; an unknown algorithm, key or value is a
-    :class:`ConfigError` naming the experiment's key and what is allowed."""
-    if not isinstance(name, str) or name not in ALGORITHMS:
-        raise ConfigError(
-            f"unknown algorithm {name!r}{did_you_mean(name, ALGORITHMS)}: choose one of {', '.join(ALGORITHMS)}",
-            "algorithm",
-        )
-    schema = ALGORITHMS[name].settings
+    :class:`ConfigError` naming the experiment's key and what is allowed.
+
+    ``observation``, where given, must be the algorithm's own and is left out of the result
+    (it is the algorithm's, not a choice)."""
+    algorithm = get_algorithm(name)
+    schema = algorithm.settings
     settings = check_keys(f"algorithms.{name}", settings, name)
+    if "observation" in settings and "observation" not in schema:
+        _check_observation(algorithm, settings.pop("observation"))
     unknown = sorted(set(settings) - set(schema))
     if unknown:
         raise ConfigError(
@@ -266,11 +554,30 @@ def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
     out = {}
     for key, spec in schema.items():
         value = settings.get(key, spec.default)
-        out[key] = check_value(_where(name, key), value, spec, field=key)
+        out[key] = check_setting(_where(name, key), value, spec, key)
         if spec.limit and out[key] is not None:
             note = training_log_note(out[key]) if spec.limit == "max_training_episodes" else ""
             check_size(spec.limit, out[key], _where(name, key), key, note=note)
     return out
+
+
+def _check_observation(algorithm: Algorithm, value: Any) -> None:
+    where = _where(algorithm.name, "observation")
+    if algorithm.observation is None:
+        if value not in OBSERVATIONS:
+            raise ConfigError(f"{where} = {value!r} is not allowed: must be one of "
+                              f"{', '.join(map(repr, OBSERVATIONS))}", "observation")
+        return
+    if value != algorithm.observation:
+        others = "; ".join(
+            f"on {o!r}: {', '.join(n for n, a in ALGORITHMS.items() if a.observation == o)}"
+            for o in OBSERVATIONS if o != algorithm.observation
+        )
+        raise ConfigError(
+            f"{where} = {value!r} is not allowed: {algorithm.label} acts on the {algorithm.observation!r} "
+            f"observation, the only valid choice (algorithms {others})",
+            "observation",
+        )
 
 
 def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where: str = "") -> None:
@@ -279,7 +586,7 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
     ``settings`` are resolved (:func:`resolve_settings`); ``where`` says which scenario (a
     sweep point) for the message.
     """
-    for key, spec in ALGORITHMS[name].settings.items():
+    for key, spec in get_algorithm(name).settings.items():
         value = settings.get(key)
         if spec.hi_of is None or value is None:
             continue
@@ -297,7 +604,7 @@ def quick_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
     capped at it (numbers) or replaced by it (anything else)."""
     resolved = resolve_settings(name, settings)
     out = dict(settings)
-    for key, spec in ALGORITHMS[name].settings.items():
+    for key, spec in get_algorithm(name).settings.items():
         value = resolved[key]
         if spec.quick is None or value is None:
             continue
@@ -309,23 +616,36 @@ def quick_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
 def task_extra(name: str, policy: Any, env: Any) -> dict[str, Any]:
     """What a task of algorithm ``name`` records beside its episodes, from the evaluated
     policy (empty for algorithms without a ``record``)."""
-    record = ALGORITHMS[name].record
+    record = get_algorithm(name).record
     return record(policy, env) if record is not None else {}
 
 
-def build_policy(name: str, env: Any, settings: dict[str, Any], seed: int) -> Any:
-    """The trained or planning policy of algorithm ``name`` for ``env``."""
-    algorithm = ALGORITHMS[name]
+def build_policy(name: str, env: Any, settings: dict[str, Any], seed: int, context: BuildContext | None = None) -> Any:
+    """The trained or planning policy of algorithm ``name`` for ``env`` (``context``:
+    what the task knows besides; by default the environment's scenario and nothing else)."""
+    algorithm = get_algorithm(name)
     assert algorithm.build is not None
-    return algorithm.build(env, resolve_settings(name, settings), seed)
+    if context is None:
+        context = BuildContext(scenario=env.unwrapped.scenario)
+    return algorithm.build(env, resolve_settings(name, settings), seed, context)
 
 
 def labels() -> dict[str, str]:
-    return {name: a.label for name, a in ALGORITHMS.items()}
+    """Every known algorithm's label by name (built-in and registered plugins)."""
+    out = {name: a.label for name, a in ALGORITHMS.items()}
+    out.update({name: a.label for name, (_, a) in _PLUGINS.items()})
+    return out
 
 
 __all__ = [
+    "ACROSS_LAYOUTS",
     "ALGORITHMS",
+    "BuildContext",
+    "ENTRY_POINT_GROUP",
+    "PER_LAYOUT",
+    "get_algorithm",
+    "load_plugin",
+    "sb3_algorithm",
     "MILP_BOUND",
     "MILP_EXPECTED_BOUND",
     "Algorithm",

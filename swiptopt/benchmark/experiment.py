@@ -14,9 +14,11 @@ evaluation episodes, and each scenario's grid).
 File format::
 
     name = "my-sweep"
-    layouts = 5          # layout seeds 0..4 per sweep point
+    layouts = 5          # layout seeds 0..4 per sweep point, or a list: layouts = [50, 51, 52]
     seeds = 1            # training/evaluation seeds per layout
     episodes = 10        # greedy evaluation episodes per task
+    training_layouts = [100, 101, 102]   # optional: where algorithms that learn across
+                                         # layouts train (or {start = 100, count = 50})
 
     [scenario]           # a preset and Scenario overrides
     preset = "paper"
@@ -33,8 +35,23 @@ File format::
     metric = "data_bits"
 
 A top-level ``baseline = "random"`` (one of the experiment's algorithms) adds a second
-table: every other algorithm's mean over the baseline's on the same layouts and seeds, with
-a bootstrap confidence interval and the number of tasks won.
+table: every other algorithm's mean over the baseline's on the same layouts, with a
+bootstrap confidence interval and the number of layouts won.
+
+Layouts: ``layouts`` is a count (layout seeds 0 .. N-1) or a list of distinct layout seeds
+in [0, :data:`MAX_LAYOUT`]. ``training_layouts`` (a list, or ``{start, count}``) is where
+algorithms with ``training = "across_layouts"`` (deep RL) train one model per training
+seed, evaluated on every evaluation layout; it is required when such an algorithm is in the
+experiment and refused otherwise (it would do nothing). It may overlap the evaluation
+layouts (the ``compare`` suite trains on the very layouts it evaluates, as the tabular
+agents do); held-out layouts (the ``generalisation`` experiment) measure generalisation.
+
+Seeds: a task's seed is ``1000 x layout + s`` for s in 0 .. seeds-1; an algorithm with a
+``training_seeds`` setting (deep RL) runs that many seeds per layout instead of ``seeds``.
+
+Plugins: ``[plugins] a2c = "my_module:factory"`` registers an algorithm from outside the
+project for this experiment (:mod:`swiptopt.benchmark.algorithms`); ``[algorithms.a2c]``
+then runs it.
 """
 
 from __future__ import annotations
@@ -49,7 +66,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from swiptopt.benchmark.algorithms import ALGORITHMS, check_settings_for, quick_settings, resolve_settings
+from swiptopt.benchmark.algorithms import (
+    ACROSS_LAYOUTS,
+    EXPANSION_SETTINGS,
+    TRAINING,
+    TRAINING_SEEDS,
+    check_settings_for,
+    load_plugin,
+    quick_settings,
+    resolve_settings,
+)
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size
 from swiptopt.tomlfile import read_toml
@@ -63,7 +89,13 @@ EVALUATION_OFFSET = 1_000_003
 #: Task seeds of one layout: layout L's tasks have seeds SEEDS_PER_LAYOUT * L + 0, 1, ...
 SEEDS_PER_LAYOUT = 1000
 
-TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline"}
+TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline",
+            "training_layouts", "plugins"}
+#: The largest layout seed an experiment names: a task's seed, 1000 x layout + s, and its
+#: evaluation seeds then stay below 2**32 (what NumPy's and torch's legacy seeding take).
+MAX_LAYOUT = 1_000_000
+#: The most layouts one list may name.
+MAX_LAYOUTS = 100_000
 FIGURE_KEYS = {"metric", "x", "title", "ylabel", "xlabel"}
 
 
@@ -88,16 +120,23 @@ class Task:
     episodes: int
     point: dict[str, Any]
     """The sweep values of this task (empty without a sweep)."""
+    training_layouts: tuple[int, ...] | list[int] | None = None
+    """Where the task's model was trained, for an algorithm that trains across layouts."""
+    plugin: str = ""
+    """The factory of a plugin algorithm (``package.module:function``), from ``[plugins]``."""
 
     @property
     def key(self) -> str:
-        """Hash of everything that determines the result (not the experiment's name)."""
-        payload = json.dumps(
-            {"scenario": self.scenario, "algorithm": self.algorithm, "settings": self.settings,
-             "seed": self.seed, "episodes": self.episodes},
-            sort_keys=True,
-            separators=(",", ":"),
-        )
+        """Hash of everything that determines the result (not the experiment's name). The
+        training layouts and the plugin's factory enter it only when set, so the keys of
+        tasks without them are those of earlier versions."""
+        content: dict[str, Any] = {"scenario": self.scenario, "algorithm": self.algorithm, "settings": self.settings,
+                                   "seed": self.seed, "episodes": self.episodes}
+        if self.training_layouts is not None:
+            content["training_layouts"] = list(self.training_layouts)
+        if self.plugin:
+            content["plugin"] = self.plugin
+        payload = json.dumps(content, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(payload.encode()).hexdigest()
 
     def to_dict(self) -> dict[str, Any]:
@@ -112,28 +151,47 @@ class Experiment:
     scenario: dict[str, Any]
     algorithms: dict[str, dict[str, Any]]
     sweep: dict[str, list[Any]] = field(default_factory=dict)
-    layouts: int = 5
+    layouts: int | tuple[int, ...] = 5
+    """A count (layout seeds 0 .. N-1) or the layout seeds themselves."""
     seeds: int = 1
     episodes: int = 10
     figure: dict[str, Any] = field(default_factory=dict)
     description: str = ""
     baseline: str = ""
-    """An algorithm of the experiment that the others are compared with, task by task."""
+    """An algorithm of the experiment that the others are compared with, layout by layout."""
+    training_layouts: tuple[int, ...] | None = None
+    """Where algorithms that train across layouts train (``None``: none do)."""
+    plugins: dict[str, str] = field(default_factory=dict)
+    """Algorithms from outside the project: name -> ``package.module:factory``."""
 
     def __post_init__(self) -> None:
         _check_name(self.name)
         for key in ("description", "baseline"):
             if not isinstance(getattr(self, key), str):
                 raise ConfigError(f"{key} = {getattr(self, key)!r} must be a string", key)
-        for key, spec in _COUNTS.items():
+        if isinstance(self.layouts, (list, tuple)):
+            object.__setattr__(self, "layouts", _check_layout_list("layouts", self.layouts))
+            counts = {k: v for k, v in _COUNTS.items() if k != "layouts"}
+        else:
+            counts = _COUNTS
+        for key, spec in counts.items():
             object.__setattr__(self, key, check_value(key, getattr(self, key), spec))
         scenario = check_keys("[scenario]", self.scenario, "scenario")
         if "layout_seed" in scenario:
             raise ConfigError("scenario.layout_seed cannot be set: layouts are set by 'layouts'", "layout_seed")
+        plugins = check_keys("[plugins]", self.plugins, "plugins")
+        for name, source in plugins.items():
+            load_plugin(name, source)
+        object.__setattr__(self, "plugins", plugins)
         algorithms = check_keys("[algorithms]", self.algorithms, "algorithms")
         if not algorithms:
             raise ConfigError("an experiment needs at least one algorithm in [algorithms]", "algorithms")
+        unused = sorted(set(plugins) - set(algorithms))
+        if unused:
+            raise ConfigError(f"plugins.{unused[0]} is registered but not run: add [algorithms.{unused[0]}] or remove it",
+                              "plugins")
         resolved = {name: resolve_settings(name, settings) for name, settings in algorithms.items()}
+        self._check_training_layouts(resolved)
         if self.baseline and self.baseline not in algorithms:
             raise ConfigError(
                 f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(algorithms)})",
@@ -142,11 +200,12 @@ class Experiment:
         self._check_sweep()
         self._check_figure()
         n_points = math.prod(len(v) for v in self.sweep.values())
-        n_tasks = n_points * self.layouts * len(algorithms) * self.seeds
+        n_layouts = len(self.layout_seeds())
+        runs = sum(self.seeds_of(settings) for settings in resolved.values())
+        n_tasks = n_points * n_layouts * runs
         check_size(
             "max_tasks", n_tasks,
-            f"tasks ({n_points:,} sweep points x {self.layouts:,} layouts x {len(algorithms)} algorithms x "
-            f"{self.seeds:,} seeds)",
+            f"tasks ({n_points:,} sweep points x {n_layouts:,} layouts x {runs:,} (algorithm, seed) pairs)",
             "sweep" if n_points > 1 else "layouts",
         )
         check_size("max_evaluation_episodes", n_tasks * self.episodes,
@@ -157,7 +216,7 @@ class Experiment:
         seen: dict[str, tuple[int, ...]] = {}
         for index in itertools.product(*(range(len(self.sweep[k])) for k in keys)):
             point = {k: self.sweep[k][i] for k, i in zip(keys, index)}
-            built = self.scenario_for(point, 0)
+            built = self.scenario_for(point, self.layout_seeds()[0])
             where = f" at sweep point {point}" if point else ""
             for name, settings in resolved.items():
                 check_settings_for(name, settings, built, where)
@@ -168,6 +227,47 @@ class Experiment:
                 same = f"lists {a!r} twice" if repr(a) == repr(b) else f"lists {a!r} and {b!r}, which give the same scenario"
                 raise ConfigError(f"sweep.{key} {same}: remove the duplicate", key)
             seen[fingerprint] = index
+
+    def _check_training_layouts(self, resolved: dict[str, dict[str, Any]]) -> None:
+        across = [name for name, settings in resolved.items() if settings.get(TRAINING) == ACROSS_LAYOUTS]
+        value = self.training_layouts
+        if value is None:
+            if across:
+                raise ConfigError(
+                    f"algorithms.{across[0]}.training = {ACROSS_LAYOUTS!r} needs training_layouts: a list of layout "
+                    "seeds, or {start = ..., count = ...}",
+                    "training_layouts",
+                )
+            return
+        if not across:
+            raise ConfigError(
+                f"training_layouts is set but no algorithm trains across layouts: set training = {ACROSS_LAYOUTS!r} "
+                "on a deep-RL algorithm, or remove training_layouts",
+                "training_layouts",
+            )
+        if isinstance(value, dict):
+            table = check_keys("training_layouts", value, "training_layouts")
+            if set(table) != {"start", "count"}:
+                raise ConfigError(f"training_layouts = {value!r} must be a list of layout seeds or a table with "
+                                  "exactly 'start' and 'count'", "training_layouts")
+            start = check_value("training_layouts.start", table["start"], Spec(kind="int", lo=0, hi=MAX_LAYOUT),
+                                field="training_layouts")
+            count = check_value("training_layouts.count", table["count"], Spec(kind="int", lo=1, hi=MAX_LAYOUTS),
+                                field="training_layouts")
+            if start + count - 1 > MAX_LAYOUT:
+                raise ConfigError(f"training_layouts = {value!r} reaches past the largest layout seed, {MAX_LAYOUT:,}",
+                                  "training_layouts")
+            value = list(range(start, start + count))
+        object.__setattr__(self, "training_layouts", _check_layout_list("training_layouts", value))
+
+    def layout_seeds(self) -> tuple[int, ...]:
+        """The evaluation layouts' seeds."""
+        return tuple(range(self.layouts)) if isinstance(self.layouts, int) else tuple(self.layouts)
+
+    def seeds_of(self, settings: dict[str, Any]) -> int:
+        """Seeds per layout of an algorithm with these resolved settings: its
+        ``training_seeds`` where it has that setting, else the experiment's ``seeds``."""
+        return int(settings.get(TRAINING_SEEDS) or self.seeds)
 
     def _check_sweep(self) -> None:
         sweep = check_keys("[sweep]", self.sweep, "sweep")
@@ -211,7 +311,7 @@ class Experiment:
                 f"known: {', '.join(sorted(TOP_KEYS))}",
                 unknown[0],
             )
-        for key in ("scenario", "sweep", "algorithms", "figure"):
+        for key in ("scenario", "sweep", "algorithms", "figure", "plugins"):
             if key in data and not isinstance(data[key], dict):
                 raise ConfigError(f"[{key}] must be a table", key)
         if not isinstance(data.get("baseline", ""), str):
@@ -228,6 +328,8 @@ class Experiment:
             figure=dict(data.get("figure", {})),
             description=data.get("description", ""),
             baseline=data.get("baseline", ""),
+            training_layouts=data.get("training_layouts"),
+            plugins=dict(data.get("plugins", {})),
         )
 
     @classmethod
@@ -241,12 +343,12 @@ class Experiment:
     def quick(self) -> Experiment:
         """The same experiment shrunk to a smoke test: 2 layouts, 1 seed, 2 episodes, the
         first two sweep values, and each algorithm's settings at their ``--quick`` values
-        (short training, short solver limits, the MILP's ``quick`` budget;
-        :func:`~swiptopt.benchmark.algorithms.quick_settings`)."""
+        (short training, one training seed, short solver limits, the MILP's ``quick``
+        budget; :func:`~swiptopt.benchmark.algorithms.quick_settings`)."""
         return dataclasses.replace(
             self,
             name=self.name,
-            layouts=min(self.layouts, 2),
+            layouts=min(self.layouts, 2) if isinstance(self.layouts, int) else self.layouts[:2],
             seeds=1,
             episodes=min(self.episodes, 2),
             sweep={k: v[:2] for k, v in self.sweep.items()},
@@ -269,15 +371,21 @@ class Experiment:
             raise ConfigError(f"scenario{where}: {exc}", exc.field) from None
 
     def tasks(self) -> list[Task]:
-        """All tasks: sweep point x layout x algorithm x seed."""
+        """All tasks: sweep point x layout x algorithm x seed (the algorithm's seeds,
+        :meth:`seeds_of`). A task's settings leave out those that only shape the expansion
+        (``training_seeds``); a task that trains across layouts carries them."""
         out = []
+        resolved = {name: resolve_settings(name, settings) for name, settings in self.algorithms.items()}
         for point in self.points():
-            for layout in range(self.layouts):
+            for layout in self.layout_seeds():
                 scenario = self.scenario_for(point, layout).to_dict()
-                for name, settings in self.algorithms.items():
-                    resolved = resolve_settings(name, settings)
-                    for s in range(self.seeds):
-                        out.append(Task(self.name, scenario, name, resolved, SEEDS_PER_LAYOUT * layout + s, self.episodes, point))
+                for name, settings in resolved.items():
+                    task_settings = {k: v for k, v in settings.items() if k not in EXPANSION_SETTINGS}
+                    across = settings.get(TRAINING) == ACROSS_LAYOUTS
+                    training = tuple(self.training_layouts) if across and self.training_layouts else None
+                    for s in range(self.seeds_of(settings)):
+                        out.append(Task(self.name, scenario, name, task_settings, SEEDS_PER_LAYOUT * layout + s,
+                                        self.episodes, point, training, self.plugins.get(name, "")))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -292,10 +400,38 @@ _AGENTS_AND_PLANNERS = {**_PAPER_ALGORITHMS, "kmeans_tsp": {}, "lawnmower": {}, 
 #: The deterministic paper preset: no fading, no link failures (the MILP is then exact).
 _DETERMINISTIC = {"channel": "none", "failure_prob_min": 0.0, "failure_prob_max": 0.0}
 _NODE_SWEEP = {"n_nodes": [10, 20, 30, 40, 50]}
+#: The layouts of the standard suite.
+_COMPARE_LAYOUTS = 6
+#: Deep RL in the standard suite: one model per algorithm and training seed, trained across
+#: the suite's own layouts (as the tabular agents train on the layout they are evaluated
+#: on), at a budget that keeps `make compare` within minutes on two cores.
+COMPARE_DEEP_TIMESTEPS = 30_000
+_COMPARE_DEEP = {
+    "ppo": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
+    "dqn": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
+}
+#: The generalisation experiment: deep RL trained on layouts 1000..1199, evaluated on the
+#: held-out layouts 0..9, at a larger budget than the standard suite's.
+GENERALISATION_TIMESTEPS = 50_000
+GENERALISATION_TRAINING = {"start": 1000, "count": 200}
 
 
 #: An experiment's name names its files: letters, digits, '-', '_' and '.', not only dots.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9._-]{1,100}")
+
+
+def _check_layout_list(key: str, values: Any) -> tuple[int, ...]:
+    """A list of distinct layout seeds in [0, MAX_LAYOUT], as a tuple."""
+    if not isinstance(values, (list, tuple)) or not values:
+        raise ConfigError(f"{key} must be a count or a non-empty list of layout seeds", key)
+    if len(values) > MAX_LAYOUTS:
+        raise ConfigError(f"{key} lists {len(values):,} layouts: at most {MAX_LAYOUTS:,}", key)
+    spec = Spec(kind="int", lo=0, hi=MAX_LAYOUT)
+    out = tuple(check_value(f"{key}[{i}]", v, spec, field=key) for i, v in enumerate(values))
+    repeated = sorted({v for v in out if out.count(v) > 1}) if len(set(out)) < len(out) else []
+    if repeated:
+        raise ConfigError(f"{key} lists layout {repeated[0]} more than once: each layout once", key)
+    return out
 
 
 def _check_name(name: Any) -> None:
@@ -312,7 +448,7 @@ def _builtin(name: str, description: str, **fields: Any) -> Experiment:
 
 
 def builtin_experiments() -> dict[str, Experiment]:
-    """The named experiments: ``compare`` and one per figure of the paper."""
+    """The named experiments: ``compare``, ``generalisation`` and one per figure of the paper."""
     paper = {"preset": "paper"}
     return {
         e.name: e
@@ -320,10 +456,28 @@ def builtin_experiments() -> dict[str, Experiment]:
             _builtin(
                 "compare",
                 "every algorithm on the standard suite: the paper preset, 25 nodes (the MILP at its "
-                "'compare' budget)",
+                f"'compare' budget; PPO and DQN trained across the 6 layouts, {COMPARE_DEEP_TIMESTEPS:,} steps, "
+                "3 seeds)",
                 scenario={**paper, "n_nodes": 25},
-                algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "compare"}},
-                layouts=6,
+                algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "compare"}, **_COMPARE_DEEP},
+                layouts=_COMPARE_LAYOUTS,
+                training_layouts=tuple(range(_COMPARE_LAYOUTS)),
+                episodes=10,
+                baseline="random",
+            ),
+            _builtin(
+                "generalisation",
+                f"deep RL trained across 200 layouts (1000-1199, {GENERALISATION_TIMESTEPS:,} steps, 3 seeds), "
+                "evaluated on 10 held-out layouts against planners that plan per layout and Q-learning "
+                "trained per layout; paper preset, 25 nodes",
+                scenario={**paper, "n_nodes": 25},
+                algorithms={
+                    "ppo": {"timesteps": GENERALISATION_TIMESTEPS, "training": "across_layouts"},
+                    "dqn": {"timesteps": GENERALISATION_TIMESTEPS, "training": "across_layouts"},
+                    "q_learning": {}, "random": {}, "kmeans_tsp": {}, "rate_greedy": {},
+                },
+                layouts=10,
+                training_layouts=GENERALISATION_TRAINING,
                 episodes=10,
                 baseline="random",
             ),

@@ -19,6 +19,14 @@ What can go wrong, and what happens then:
   one per fresh process, so the one that crashes is recorded as failed and the rest finish.
 - Every worker runs one thread per native pool and exits when the run's process dies
   (:mod:`swiptopt.benchmark.processes`).
+
+Trained deep-RL models are kept beside the store, in ``<store's directory>/models/``, as
+Stable-Baselines3 zips named by the hash of their training configuration
+(:func:`rl.deep.train_or_load_deep`): a task whose model is there loads it instead of
+training, so a second run (or another experiment with the same training) trains nothing. A
+model trained across layouts serves every task of its training seed; the runner starts one
+task per model first, each alone in its batch, so the workers train different models at
+once, and a lock beside each model makes any other process that needs it wait and load it.
 """
 
 from __future__ import annotations
@@ -56,24 +64,48 @@ NATIVE_MODULES = {
 MAX_WORKERS_PER_CORE = 4
 #: Dask schemes that reach another process.
 DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+#: The key of a task dict sent to a worker that holds where trained models are kept (not
+#: part of the task: it does not change the result).
+MODELS_DIR = "models_dir"
+#: The directory, beside the store, that holds trained models.
+MODELS_SUBDIR = "models"
+
+
+def models_dir_for(store_path: Any) -> str:
+    """Where a run on the store at ``store_path`` keeps trained models (absolute)."""
+    from pathlib import Path
+
+    return str(Path(store_path).resolve().parent / MODELS_SUBDIR)
+
+
+def _split(task: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
+    """A task dict as sent to a worker: the task itself, and the models directory."""
+    task = dict(task)
+    return task, task.pop(MODELS_DIR, None)
 
 
 # ------------------------------------------------------------------------ one task
 
 
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
-    """Run one task (a :meth:`Task.to_dict`); returns its result for the store."""
+    """Run one task (a :meth:`Task.to_dict`, with :data:`MODELS_DIR` where trained models
+    are kept, if anywhere); returns its result for the store."""
     from planners.bounds import EXACT_STATE_LIMIT, exact_optimum, exact_state_bound, upper_bound
-    from swiptopt.benchmark.algorithms import build_policy, task_extra
+    from swiptopt.benchmark.algorithms import BuildContext, build_policy, get_algorithm, task_extra
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
     from swiptopt.env import AuvSwiptEnv
     from swiptopt.evaluation import evaluate
     from swiptopt.scenario import Scenario
 
     start = time.perf_counter()
+    task, models_dir = _split(task)
     t = Task(**task)
+    algorithm = get_algorithm(t.algorithm, t.plugin)  # registers a plugin in this process
     scenario = Scenario.from_dict(t.scenario)
-    env = AuvSwiptEnv(scenario)
-    policy = build_policy(t.algorithm, env, t.settings, t.seed)
+    env = AuvSwiptEnv(scenario, observation=algorithm.observation or "tabular")
+    training = tuple(t.training_layouts) if t.training_layouts is not None else None
+    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir)
+    policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
     result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_OFFSET)
     bound = upper_bound(scenario, env.tables)
     extra: dict[str, Any] = {"upper_bound_return": bound.return_, **task_extra(t.algorithm, policy, env)}
@@ -125,14 +157,26 @@ def run_ompl_task(task: dict[str, Any]) -> dict[str, Any]:
 
 
 def _failure(task: dict[str, Any], reason: str, detail: str = "") -> dict[str, Any]:
+    task, _ = _split(task)
     return {"key": Task(**task).key, "task": task, "error": reason, "detail": detail}
 
 
-def _modules_for(tasks: list[dict[str, Any]]) -> tuple[str, ...]:
-    from swiptopt.benchmark.algorithms import ALGORITHMS
+def _algorithm_of(task: dict[str, Any]) -> Any:
+    """The task's algorithm, or None if it cannot be found here (the task reports why)."""
+    from swiptopt.benchmark.algorithms import get_algorithm
 
-    families = {ALGORITHMS[t["algorithm"]].family for t in tasks if t["algorithm"] in ALGORITHMS}
-    return tuple(dict.fromkeys(m for family in sorted(families) for m in NATIVE_MODULES.get(family, ())))
+    try:
+        return get_algorithm(task["algorithm"], task.get("plugin", ""))
+    except ConfigError:
+        return None
+
+
+def _modules_for(tasks: list[dict[str, Any]]) -> tuple[str, ...]:
+    algorithms = {t["algorithm"]: _algorithm_of(t) for t in tasks}
+    known = [a for _, a in sorted(algorithms.items()) if a is not None]
+    families = sorted({a.family for a in known})
+    modules = [m for family in families for m in NATIVE_MODULES.get(family, ())] + [m for a in known for m in a.modules]
+    return tuple(dict.fromkeys(modules))
 
 
 def run_isolated(task: dict[str, Any]) -> dict[str, Any]:
@@ -175,14 +219,16 @@ def warm_up(tasks: list[dict[str, Any]]) -> None:
     small = Scenario.from_dict({"preset": "paper", "n_nodes": 4, "episode_steps": 10}).to_dict()
     seen: set[str] = set()
     for task in tasks:
-        if task["algorithm"] in seen or uses_ompl(task):
+        algorithm = _algorithm_of(task)
+        # a trained model's warm-up would cost a training; its imports are in its modules
+        if task["algorithm"] in seen or uses_ompl(task) or (algorithm is not None and algorithm.trains_model):
             continue
         seen.add(task["algorithm"])
         settings = dict(task["settings"])
         if settings.get("train_episodes"):
             settings["train_episodes"] = 1
         try:
-            run_task({**task, "scenario": small, "settings": settings, "episodes": 1})
+            run_task({**_split(task)[0], "scenario": small, "settings": settings, "episodes": 1})
         except Exception:
             pass  # the real task meets the same error and records it
 
@@ -334,12 +380,42 @@ def _dask(batches: list[list[dict[str, Any]]], scheduler: str, modules: tuple[st
 # ------------------------------------------------------------------------- a run
 
 
-def _batches(tasks: list[Task], workers: int) -> list[list[dict[str, Any]]]:
-    # small batches: at least ~8 per worker for load balance, at most 4 tasks each so a
-    # killed run loses little
-    size = max(1, min(4, math.ceil(len(tasks) / max(1, workers * 8))))
-    dicts = [t.to_dict() for t in tasks]
-    return [dicts[i : i + size] for i in range(0, len(dicts), size)]
+def _model_of(task: Task) -> tuple[Any, ...] | None:
+    """What names the model a task trains (tasks that share it train it once), or None for
+    tasks that train no model worth scheduling apart."""
+    import json
+
+    algorithm = _algorithm_of(task.to_dict())
+    if algorithm is None or not algorithm.trains_model:
+        return None
+    if task.training_layouts is None:
+        return (task.key,)  # a model of its own
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
+
+    scenario = {k: v for k, v in task.scenario.items() if k != "layout_seed"}
+    return (task.algorithm, task.plugin, json.dumps([scenario, task.settings], sort_keys=True),
+            task.seed % SEEDS_PER_LAYOUT, tuple(task.training_layouts))
+
+
+def _batches(tasks: list[Task], workers: int, models_dir: str | None = None) -> list[list[dict[str, Any]]]:
+    """Batches of task dicts: first, one task per model to train, each alone (so the workers
+    train different models at once and the longest work starts first); then the rest in
+    small batches, at least ~8 per worker for load balance and at most 4 tasks each so a
+    killed run loses little."""
+    first: list[Task] = []
+    rest: list[Task] = []
+    models: set[tuple[Any, ...]] = set()
+    for t in tasks:
+        model = _model_of(t)
+        if model is not None and model not in models:
+            models.add(model)
+            first.append(t)
+        else:
+            rest.append(t)
+    extra = {MODELS_DIR: models_dir} if models_dir is not None else {}
+    size = max(1, min(4, math.ceil(len(rest) / max(1, workers * 8))))
+    dicts = [{**t.to_dict(), **extra} for t in rest]
+    return [[{**t.to_dict(), **extra}] for t in first] + [dicts[i : i + size] for i in range(0, len(dicts), size)]
 
 
 @dataclass(frozen=True)
@@ -382,7 +458,8 @@ def execute(
     ``workers``: local processes (default: the machine's cores); ``scheduler``: a Dask
     scheduler address, or ``local:N`` for a local Dask cluster on loopback.
     ``on_progress(done, todo)`` is called after every committed task. A task that fails is
-    recorded in the store (not as a result) and in the report; the others go on.
+    recorded in the store (not as a result) and in the report; the others go on. Trained
+    models go to ``models/`` beside the store (:func:`models_dir_for`).
     """
     start = time.perf_counter()
     workers = check_run_options(workers, scheduler)
@@ -400,7 +477,7 @@ def execute(
     if not todo:
         return RunReport(total, total, 0, time.perf_counter() - start)
     todo_dicts = [t.to_dict() for t in todo]
-    batches = _batches(todo, workers if scheduler is None else 4)
+    batches = _batches(todo, workers if scheduler is None else 4, models_dir_for(store.path))
     modules = _modules_for(todo_dicts)
     limit = None
     if scheduler:

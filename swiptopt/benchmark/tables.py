@@ -20,10 +20,18 @@ words that say what it bounds:
 The MILP's own row adds [best, bound]: the mean of its plans' values in its model and of
 its bounds.
 
+Spread across training seeds: where an algorithm ran several seeds per layout (deep RL's
+``training_seeds``), its return is also averaged over the layouts seed by seed, and the
+``return by seed`` column shows the lowest and highest of those per-seed means (CSV: the
+metric ``return_by_seed``, with every statistic of the per-seed means). The main columns
+summarise every task (layouts x seeds).
+
 An experiment with a ``baseline`` algorithm also gets a paired table (:func:`paired`): for
-each other algorithm and metric, the ratio of its mean to the baseline's over the tasks both
-ran (the same scenario, layout and seed), a 95 % bootstrap confidence interval of that
-ratio, and on how many of those tasks it beat the baseline.
+each other algorithm and metric, the ratio of its mean to the baseline's over the layouts
+both ran (the same scenario and layout; each side averaged over its seeds there, so an
+algorithm with three training seeds is paired with a baseline that ran one), a 95 %
+bootstrap confidence interval of that ratio (layouts resampled), and on how many of those
+layouts it beat the baseline.
 """
 
 from __future__ import annotations
@@ -46,6 +54,8 @@ from swiptopt.benchmark.store import ResultStore
 #: Extra columns beyond the episode metrics.
 GAP_BOUND = "gap_to_bound"
 GAP_OPTIMUM = "gap_to_optimum"
+#: The per-seed means of the return (over layouts), where an algorithm ran several seeds.
+SEED_SPREAD = "return_by_seed"
 #: A solver's own numbers, in its row: its plans' values in its model and its bounds.
 SOLVER_BEST = "best_return"
 SOLVER_BOUND = "bound_return"
@@ -136,6 +146,26 @@ def _solver_notes(found: list[dict[str, Any]]) -> str:
     return ", ".join(notes)
 
 
+def _seed_means(by_seed: dict[int, dict[str, Any]], metric: str) -> list[float]:
+    """The mean of ``metric`` over layouts for each seed index (task seed mod 1000)."""
+    per_seed: dict[int, list[float]] = {}
+    for seed, r in by_seed.items():
+        value = _task_mean(r["records"], metric)
+        if value is not None:
+            per_seed.setdefault(seed % SEEDS_PER_LAYOUT, []).append(value)
+    return [float(np.mean(v)) for _, v in sorted(per_seed.items())]
+
+
+def _layout_means(by_seed: dict[int, dict[str, Any]], metric: str) -> dict[int, float]:
+    """The mean of ``metric`` over each layout's seeds, by layout."""
+    per_layout: dict[int, list[float]] = {}
+    for seed, r in by_seed.items():
+        value = _task_mean(r["records"], metric)
+        if value is not None:
+            per_layout.setdefault(seed // SEEDS_PER_LAYOUT, []).append(value)
+    return {layout: float(np.mean(v)) for layout, v in per_layout.items()}
+
+
 def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], int]:
     """Rows of the experiment's stored results, and how many of its tasks are missing."""
     stored, missing = _stored(experiment, store)
@@ -165,6 +195,9 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
                 if ret is not None and opt:
                     optimum_gaps.append((opt - ret) / abs(opt))
             summaries = {m: Summary.of(v) for m, v in per_metric.items()}
+            seed_means = _seed_means(by_seed, "return")
+            if len(seed_means) > 1:
+                summaries[SEED_SPREAD] = Summary.of(seed_means)
             summaries[GAP_BOUND] = Summary.of(gaps)
             if optimum_gaps:
                 summaries[GAP_OPTIMUM] = Summary.of(optimum_gaps)
@@ -254,12 +287,8 @@ def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[Pa
                 continue
             ratios = {}
             for metric, _ in PAIRED:
-                pairs = [
-                    (a, b)
-                    for task_seed in sorted(set(mine) & set(base))
-                    if (a := _task_mean(mine[task_seed]["records"], metric)) is not None
-                    and (b := _task_mean(base[task_seed]["records"], metric)) is not None
-                ]
+                a, b = _layout_means(mine, metric), _layout_means(base, metric)
+                pairs = [(a[layout], b[layout]) for layout in sorted(set(a) & set(b))]
                 x, y = (np.array(v, float) for v in zip(*pairs)) if pairs else (np.zeros(0), np.zeros(0))
                 ratios[metric] = Ratio.of(x, y, rng)
             rows.append(PairedRow(point, algorithm, names.get(algorithm, algorithm), ratios))
@@ -286,8 +315,8 @@ def _paired_table(rows: list[PairedRow]) -> tuple[list[str], list[list[str]]]:
 def paired_title(experiment: Experiment) -> str:
     label = labels().get(experiment.baseline, experiment.baseline)
     return (
-        f"{experiment.name}: mean / mean of {label} over the same layouts and seeds, "
-        "[95 % bootstrap CI], tasks won"
+        f"{experiment.name}: mean / mean of {label} over the same layouts (seeds averaged), "
+        "[95 % bootstrap CI], layouts won"
     )
 
 
@@ -307,11 +336,23 @@ def _point_label(point: dict[str, Any]) -> str:
     return ", ".join(f"{k}={v}" for k, v in point.items())
 
 
+def _has_seed_spread(rows: list[Row]) -> bool:
+    return any(SEED_SPREAD in r.summaries for r in rows)
+
+
 def _headings(rows: list[Row]) -> list[str]:
     has_point = any(r.point for r in rows)
     has_opt = any(GAP_OPTIMUM in r.summaries for r in rows)
     heads = (["point"] if has_point else []) + ["algorithm", "rank"] + [h for _, h, _, _ in DISPLAY] + ["bound"]
-    return heads + (["gap to optimum"] if has_opt else [])
+    return heads + (["gap to optimum"] if has_opt else []) + (["return by seed"] if _has_seed_spread(rows) else [])
+
+
+def _seed_cell(row: Row) -> str:
+    """``min–max (k seeds)`` of the per-seed mean returns, or '' for a single seed."""
+    s = row.summaries.get(SEED_SPREAD)
+    if s is None or s.n < 2:
+        return ""
+    return f"{s.min:.2f}–{s.max:.2f} ({s.n} seeds)"
 
 
 def _solver_cell(row: Row) -> str:
@@ -335,6 +376,8 @@ def _cells(row: Row, rows: list[Row]) -> list[str]:
     if has_opt:
         opt = _cell(row.summaries.get(GAP_OPTIMUM), 100.0, 0)
         out.append(opt + (" %" if opt != "n/a" else ""))
+    if _has_seed_spread(rows):
+        out.append(_seed_cell(row))
     return out
 
 

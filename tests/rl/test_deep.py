@@ -99,13 +99,13 @@ def test_training_across_layouts():
 
 def test_train_or_load_reuses_a_matching_model(tmp_path):
     first = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
-    assert not first.loaded and list(tmp_path.iterdir()) == [tmp_path / f"dqn-{first.config_hash}.zip"]
+    assert not first.loaded and list(tmp_path.glob("*.zip")) == [tmp_path / f"dqn-{first.config_hash}.zip"]
     second = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
     assert second.loaded and second.config_hash == first.config_hash
     obs = _observations(50)
     np.testing.assert_array_equal(first.model.predict(obs, True)[0], second.model.predict(obs, True)[0])
     other = train_or_load_deep(tmp_path, "dqn", TINY.replace(split_ratio=0.3), 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
-    assert not other.loaded and len(list(tmp_path.iterdir())) == 2
+    assert not other.loaded and len(list(tmp_path.glob("*.zip"))) == 2
 
 
 def test_the_hash_names_every_part_of_the_configuration():

@@ -67,7 +67,7 @@ def test_experiment_expansion_and_keys(tmp_path):
     "text, words",
     [
         ("name = 'x'\n[algorithms.q_learning\n", ["malformed TOML"]),
-        ("name = 'x'\n[algorithms.dqn]\n", ["unknown algorithm 'dqn'"]),
+        ("name = 'x'\n[algorithms.dqm]\n", ["unknown algorithm 'dqm'", "did you mean 'dqn'"]),
         ("name = 'x'\nlayout = 3\n[algorithms.random]\n", ["unknown experiment key 'layout'"]),
         ("name = 'x'\n[scenario]\nn_node = 3\n[algorithms.random]\n", ["n_node"]),
         ("name = 'x'\n[scenario]\nsplit_ratio = 2.0\n[algorithms.random]\n", ["split_ratio", "2.0"]),
@@ -167,7 +167,7 @@ def test_builtin_lookup():
     assert load_experiment("compare").name == "compare"
     builtins = builtin_experiments()
     planners_and_agents = {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy", "rate_greedy"}
-    assert set(builtins["compare"].algorithms) == planners_and_agents | {"milp"}
+    assert set(builtins["compare"].algorithms) == planners_and_agents | {"milp", "ppo", "dqn"}
     assert builtins["compare"].algorithms["milp"] == {"budget": "compare"}
     optimum = builtins["optimum"]
     assert set(optimum.algorithms) == planners_and_agents | {"milp"}

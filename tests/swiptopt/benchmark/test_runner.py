@@ -27,7 +27,7 @@ BROKEN_SEED = 1000
 FLAKY = {"fail": True}
 
 
-def _flaky_build(env, settings, seed):
+def _flaky_build(env, settings, seed, context):
     if FLAKY["fail"] and seed == BROKEN_SEED:
         raise ValueError("cell 7 cannot be reached from cell 3")
     from planners.policies import GreedyPlanner
@@ -208,8 +208,8 @@ def test_workers_die_with_a_killed_run(tmp_path, executor):
 
 
 def test_compare_prints_the_same_tables_on_every_executor_and_every_run(tmp_path):
-    # --quick: every algorithm of compare (the MILP at its quick budget) on 2 layouts, so the
-    # test takes a minute rather than several; each run after the first is a rerun too
+    # --quick: every algorithm of compare (the MILP at its quick budget, PPO and DQN at 1024
+    # steps, one training seed) on 2 layouts, so the test takes a minute rather than several
     tables = {}
     for name, executor in (("workers1", ["--workers", "1"]), ("workers2", ["--workers", "2"]),
                            ("dask", ["--scheduler", "local:2"])):
@@ -221,11 +221,13 @@ def test_compare_prints_the_same_tables_on_every_executor_and_every_run(tmp_path
             capture_output=True, text=True,
         )
         assert result.returncode == 0, result.stderr
-        assert "16 tasks: 0 already stored, 16 run" in result.stderr and "missing" not in result.stderr
+        assert "20 tasks: 0 already stored, 20 run" in result.stderr and "missing" not in result.stderr
         tables[name] = output.read_text()
         assert tables[name] == result.stdout
     assert "| k-means + TSP |" in tables["workers1"] and "×" in tables["workers1"]
     assert "| MILP |" in tables["workers1"] and "milp (expected)" in tables["workers1"]
+    # deep RL too: the models trained by one worker, two, or Dask's give the same rows
+    assert "| PPO |" in tables["workers1"] and "| DQN |" in tables["workers1"]
     reference = tables["workers1"].splitlines()
     differences = {name: [line for line in text.splitlines() if line not in reference]
                    for name, text in tables.items() if text != tables["workers1"]}
