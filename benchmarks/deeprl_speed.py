@@ -12,10 +12,10 @@ of a run's cost is the environment. Usage:
 from __future__ import annotations
 
 import argparse
-import platform
 import statistics
 
 import gymnasium as gym
+from machine import describe
 
 from rl.deep import train_deep
 from swiptopt import Scenario
@@ -25,17 +25,6 @@ from swiptopt.env import AuvSwiptEnv
 def rate(algorithm: str, env: gym.Env, timesteps: int, seed: int) -> float:
     """Environment steps per second of one training run (construction excluded)."""
     return timesteps / train_deep(algorithm, env, timesteps, seed).train_seconds
-
-
-def _cpu() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def main() -> None:
@@ -60,7 +49,7 @@ def main() -> None:
     med = {key: statistics.median(values) for key, values in rates.items()}
     ours, cartpole = envs
     print(f"SB3 training steps per second (defaults, one torch thread), median of {args.repeats} x {args.timesteps} steps")
-    print(f"machine: {_cpu()}, {__import__('os').cpu_count()} logical cores")
+    print(describe())
     for algorithm in ("ppo", "dqn"):
         a, b = med[algorithm, ours], med[algorithm, cartpole]
         print(f"  {algorithm.upper()}: {ours}: {a:>8,.0f}   CartPole-v1: {b:>8,.0f}   ratio ours / CartPole: {a / b:.2f}")
