@@ -135,6 +135,8 @@ class Algorithm:
     observation: str | None = None
     modules: tuple[str, ...] = ()
     trains_model: bool = False
+    check: Callable[[dict[str, Any]], None] | None = None
+    """Checks between settings (called with the resolved settings; raises ConfigError)."""
 
     @property
     def defaults(self) -> dict[str, Any]:
@@ -229,7 +231,24 @@ _TABULAR = {
     "epsilon_start": Setting(default=1.0, lo=0, hi=1, doc="exploration probability of the first episode"),
     "epsilon_decay": Setting(default=0.999, lo=0, lo_open=True, hi=1, doc="epsilon factor per episode"),
     "epsilon_min": Setting(default=0.001, lo=0, hi=1, doc="floor of epsilon"),
+    "replay_size": Setting(default=0, kind="int", lo=0, hi=10**7,
+                           doc="experience-replay memory in transitions, 0 for none (the paper's Table I: 1000; "
+                               "needs backend = 'python')"),
+    "replay_batch": Setting(default=4, kind="int", lo=1, hi=10**4,
+                            doc="transitions replayed after every step when replay is on (Table I: 4)"),
 }
+
+
+def _check_tabular(name: str) -> Callable[[dict[str, Any]], None]:
+    def check(settings: dict[str, Any]) -> None:
+        if settings["replay_size"] and settings["backend"] != "python":
+            raise ConfigError(
+                f"{_where(name, 'replay_size')} = {settings['replay_size']} needs {_where(name, 'backend')} = "
+                f"'python' (experience replay runs in the Python training loop only), got {settings['backend']!r}",
+                "backend",
+            )
+
+    return check
 # ------------------------------------------------------------------ deep RL
 
 #: The settings of a deep-RL algorithm that say how it trains, not what SB3 is given.
@@ -336,8 +355,9 @@ ALGORITHMS: dict[str, Algorithm] = {
     a.name: a
     for a in (
         Algorithm("q_learning", "Q-learning", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("q_learning"),
-                  observation="tabular"),
-        Algorithm("sarsa", "SARSA", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("sarsa"), observation="tabular"),
+                  observation="tabular", check=_check_tabular("q_learning")),
+        Algorithm("sarsa", "SARSA", "rl", {**_RL_TRAINING, **_TABULAR}, _rl("sarsa"), observation="tabular",
+                  check=_check_tabular("sarsa")),
         Algorithm("random", "random", "rl", {**_RL_TRAINING, "train_episodes": Setting(
             default=0, kind="int", lo=0, limit="max_training_episodes", doc="ignored: the random agent learns nothing",
         )}, _rl("random"), observation="tabular"),
@@ -558,6 +578,8 @@ def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
         if spec.limit and out[key] is not None:
             note = training_log_note(out[key]) if spec.limit == "max_training_episodes" else ""
             check_size(spec.limit, out[key], _where(name, key), key, note=note)
+    if algorithm.check is not None:
+        algorithm.check(out)
     return out
 
 

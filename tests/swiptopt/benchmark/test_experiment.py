@@ -98,17 +98,23 @@ def test_every_bad_setting_fails_at_construction_naming_the_experiment_key(name,
 NUMERIC = [(n, k) for n, k in SETTINGS if ALGORITHMS[n].settings[k].kind in ("int", "float")]
 
 
+#: Settings another setting must accompany (checked between settings): replay needs the
+#: Python training loop.
+COMPANIONS = {"replay_size": {"backend": "python"}}
+
+
 @pytest.mark.parametrize("name, key", NUMERIC)
 @given(value=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-(10**12), 10**12)))
 def test_numeric_settings_accept_exactly_their_range(name, key, value):
     spec = ALGORITHMS[name].settings[key]
     upper = spec.upper()
     ok = math.isfinite(value) and spec.in_range(value, upper) and (spec.kind == "float" or float(value).is_integer())
+    settings = {key: value, **COMPANIONS.get(key, {})}
     if ok:
-        assert resolve_settings(name, {key: value})[key] == value
+        assert resolve_settings(name, settings)[key] == value
     else:
         with pytest.raises(ConfigError, match=f"algorithms.{name}.{key}"):
-            resolve_settings(name, {key: value})
+            resolve_settings(name, settings)
 
 
 def test_schema_agrees_with_what_the_algorithms_accept():
@@ -117,7 +123,7 @@ def test_schema_agrees_with_what_the_algorithms_accept():
     for name in ("q_learning", "sarsa", "random"):
         assert set(ALGORITHMS[name].settings["backend"].choices) == set(BACKENDS)
     # the tabular settings: same defaults, and what the schema refuses TabularConfig refuses
-    for key in ("learning_rate", "discount", "epsilon_start", "epsilon_decay", "epsilon_min"):
+    for key in ("learning_rate", "discount", "epsilon_start", "epsilon_decay", "epsilon_min", "replay_size", "replay_batch"):
         spec = ALGORITHMS["q_learning"].settings[key]
         assert getattr(TabularConfig(), key) == spec.default
         for value in (spec.lo - 0.1, spec.hi + 0.1) + ((spec.lo,) if spec.lo_open else ()):
@@ -410,3 +416,24 @@ def test_a_run_on_a_walled_volume_completes_for_every_planner(tmp_path):
         assert report.ran == 3 and store.count() == 3
         rows, missing = tables.aggregate(exp, store)
     assert missing == 0 and all(r.summaries["data_bits"].mean > 0 for r in rows)
+
+
+def test_table_one_replay_is_a_setting_that_needs_the_python_loop(tmp_path):
+    from swiptopt.benchmark.algorithms import build_policy, resolve_settings
+    from swiptopt.env import AuvSwiptEnv
+
+    resolved = resolve_settings("q_learning", {"replay_size": 1000, "backend": "python"})
+    assert (resolved["replay_size"], resolved["replay_batch"]) == (1000, 4)
+    with pytest.raises(ConfigError, match=r"algorithms\.sarsa\.replay_size = 1000 needs algorithms\.sarsa\.backend = 'python'"):
+        resolve_settings("sarsa", {"replay_size": 1000})
+    # refused with the experiment, before any task runs
+    with pytest.raises(ConfigError, match="replay_size"):
+        experiment(algorithms={"q_learning": {"replay_size": 10}})
+    # the setting reaches the agent: replay changes what it learns
+    env = AuvSwiptEnv(preset="tiny")
+    plain = build_policy("q_learning", env, resolve_settings("q_learning", {"train_episodes": 30, "backend": "python"}), seed=0)
+    replayed = build_policy(
+        "q_learning", env, resolve_settings("q_learning", {"train_episodes": 30, "backend": "python", "replay_size": 50}), seed=0
+    )
+    assert replayed.config.replay_size == 50 and replayed.config.replay_batch == 4
+    assert not (plain.q_table_ == replayed.q_table_).all()
