@@ -298,7 +298,7 @@ class ResultStore:
         if self.readonly:
             raise StoreError(self.path, f"is open read-only; cannot {doing}")
         with self._guard(doing):
-            self._db.execute("BEGIN IMMEDIATE")
+            self._execute_waiting("BEGIN IMMEDIATE")
             try:
                 yield self._db
             except BaseException:
@@ -336,9 +336,25 @@ class ResultStore:
                                         "it is left untouched")
         if not self.readonly:
             with self._guard("opening it for writing"):
-                self._db.execute("PRAGMA journal_mode=WAL")
+                self._execute_waiting("PRAGMA journal_mode=WAL")  # a no-op once it is
             with self._write("opening it for writing"):
                 pass  # waits here, before any work, if another process holds the store
+
+    def _execute_waiting(self, sql: str) -> None:
+        """Execute ``sql`` (a lock-taking statement), waiting for other processes up to the
+        busy timeout even where SQLite does not: it fails at once, without its busy handler,
+        when waiting could deadlock (two processes switching a new file to WAL, or upgrading
+        read locks, at the same moment), so retry such failures until the timeout."""
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            try:
+                self._db.execute(sql)
+                return
+            except sqlite3.OperationalError as exc:
+                message = str(exc)
+                if ("locked" not in message and "busy" not in message) or time.monotonic() >= deadline:
+                    raise
+                time.sleep(0.02)
 
     def _check_ours(self, version: int, tables: dict[str, list[str]]) -> None:
         if version != SCHEMA_VERSION:

@@ -404,3 +404,26 @@ def test_run_does_not_run_git_in_the_working_directory(tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.abspath(swiptopt.__file__)))
     if os.path.exists(os.path.join(root, ".git")):
         assert recorded["git"] == _git("rev-parse", "HEAD", cwd=root)
+
+
+_OPENER = """
+import sys, time
+from swiptopt.benchmark.store import ResultStore
+start = float(sys.argv[2])
+time.sleep(max(0.0, start - time.time()))  # every process opens the new file at once
+with ResultStore(sys.argv[1]) as s:
+    print(s.count())
+"""
+
+
+def test_many_processes_opening_one_new_store_at_once_all_succeed(tmp_path):
+    # switching a new file to WAL deadlocks in SQLite when two processes do it at once; the
+    # loser must wait and retry like any other writer, not fail with "locked"
+    for attempt in range(3):
+        path = tmp_path / f"new{attempt}.sqlite"
+        start = time.time() + 1.5
+        procs = [subprocess.Popen([sys.executable, "-c", _OPENER, str(path), str(start)], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True) for _ in range(6)]
+        results = [p.communicate(timeout=120) for p in procs]
+        assert [p.returncode for p in procs] == [0] * 6, [err for _, err in results if err]
+        assert [out.strip() for out, _ in results] == ["0"] * 6
