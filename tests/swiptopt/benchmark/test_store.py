@@ -427,3 +427,37 @@ def test_many_processes_opening_one_new_store_at_once_all_succeed(tmp_path):
         results = [p.communicate(timeout=120) for p in procs]
         assert [p.returncode for p in procs] == [0] * 6, [err for _, err in results if err]
         assert [out.strip() for out, _ in results] == ["0"] * 6
+
+
+class _FailingFirst:
+    """A connection whose first ``fails`` executions of ``sql`` raise SQLite's immediate
+    "database is locked" (what a deadlock-avoiding SQLite returns without waiting)."""
+
+    def __init__(self, db, sql, fails):
+        self.db, self.sql, self.fails, self.calls = db, sql, fails, 0
+
+    def execute(self, sql, *args):
+        if sql == self.sql:
+            self.calls += 1
+            if self.calls <= self.fails:
+                raise sqlite3.OperationalError("database is locked")
+        return self.db.execute(sql, *args)
+
+    def __getattr__(self, name):
+        return getattr(self.db, name)
+
+
+def test_an_immediate_lock_failure_is_retried_until_the_busy_timeout(tmp_path):
+    with ResultStore(tmp_path / "s.sqlite", timeout_s=5.0) as s:
+        real = s._db
+        s._db = _FailingFirst(real, "BEGIN IMMEDIATE", 3)
+        s._execute_waiting("BEGIN IMMEDIATE")  # retried past three immediate failures
+        assert s._db.calls == 4 and real.in_transaction
+        real.execute("ROLLBACK")
+        s.timeout_s = 0.1
+        s._db = _FailingFirst(real, "BEGIN IMMEDIATE", 10**9)
+        started = time.monotonic()
+        with pytest.raises(sqlite3.OperationalError, match="locked"):
+            s._execute_waiting("BEGIN IMMEDIATE")  # gives up at the timeout, not before
+        assert time.monotonic() - started >= 0.1 and s._db.calls > 1
+        s._db = real
