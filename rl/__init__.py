@@ -1,12 +1,13 @@
 """Reinforcement-learning agents and their training loops (built on ``swiptopt``'s model).
 
-``RandomAgent``, ``QLearningAgent`` and ``SarsaAgent`` (the paper's), ``train`` with a
-Python and a compiled backend, and ``paper_protocol`` (train, then evaluate greedily).
-Deep RL (Stable-Baselines3's PPO and DQN, the ``deeprl`` extra): ``train_deep``,
+``RandomAgent``, ``QLearningAgent`` and ``SarsaAgent`` (the paper's), ``UniformRandomAgent``
+(random actions in a continuous action space), ``train`` with a Python and a compiled
+backend, and ``paper_protocol`` (train, then evaluate greedily). Deep RL (Stable-Baselines3's
+PPO, DQN and SAC, the ``deeprl`` extra; the grid world or the continuous one): ``train_deep``,
 ``load_deep``, ``train_or_load_deep`` in :mod:`rl.deep`, which loads torch only when used.
 """
 
-from rl.agents import AGENTS, QLearningAgent, RandomAgent, SarsaAgent, make_agent
+from rl.agents import AGENTS, QLearningAgent, RandomAgent, SarsaAgent, UniformRandomAgent, make_agent
 from rl.config import TabularConfig
 from rl.deep import (
     DEEP_ALGORITHMS,
@@ -33,6 +34,7 @@ __all__ = [
     "SarsaAgent",
     "TabularConfig",
     "TrainingLog",
+    "UniformRandomAgent",
     "deep_config_hash",
     "load_deep",
     "make_agent",

@@ -56,6 +56,38 @@ class RandomAgent:
         """Nothing to decay."""
 
 
+class UniformRandomAgent:
+    """The random baseline for a continuous action space: each action drawn uniformly from
+    the box ``[low, high]`` (per component) by the agent's own generator, in training and
+    evaluation alike.
+
+    ``low`` and ``high`` are arrays of one shape (a Gymnasium ``Box``'s bounds, e.g.
+    ``UniformRandomAgent.for_space(env.action_space, seed=1)``); actions are ``float32``.
+    """
+
+    algorithm = "random"
+    learns = False
+
+    def __init__(self, low: Any, high: Any, *, seed: int | None = None):
+        low, high = np.asarray(low, dtype=np.float32), np.asarray(high, dtype=np.float32)
+        if low.shape != high.shape or not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))) \
+                or np.any(high < low):
+            raise ConfigError(f"low = {low!r} and high = {high!r} must be finite arrays of one shape with low <= high",
+                              "action_space")
+        self.low, self.high = low, high
+        self.seed = seed
+        self.rng_ = np.random.default_rng(seed)
+
+    @classmethod
+    def for_space(cls, space: Any, *, seed: int | None = None) -> UniformRandomAgent:
+        """An agent for a Gymnasium ``Box`` action space."""
+        return cls(space.low, space.high, seed=seed)
+
+    def predict(self, obs: Any, deterministic: bool = False) -> np.ndarray:
+        """A uniform random action in the box (random when evaluated, too)."""
+        return self.rng_.uniform(self.low, self.high).astype(np.float32)
+
+
 class _TabularAgent:
     """Shared machinery of Q-learning and SARSA: table, epsilon schedule, replay, save/load."""
 

@@ -1,7 +1,9 @@
-"""Deep-RL contenders: Stable-Baselines3's PPO and DQN on the ``vector`` observation.
+"""Deep-RL contenders: Stable-Baselines3's PPO, DQN and SAC on the ``vector`` observation.
 
-One entry point trains either (:func:`train_deep`), or any other SB3 algorithm named by its
-class (``"stable_baselines3:A2C"``); models are saved in SB3's own ``.zip`` format, with the
+One entry point trains any of them (:func:`train_deep`), or any other SB3 algorithm named by
+its class (``"stable_baselines3:A2C"``), in either world (:mod:`swiptopt.worlds`): the
+paper's grid (discrete moves: PPO, DQN) or the continuous world (velocity commands in a
+``Box``: PPO, SAC). Models are saved in SB3's own ``.zip`` format, with the
 hash of their configuration inside, and loaded back (:func:`load_deep`);
 :func:`deep_config_hash` names a training configuration, so that :func:`train_or_load_deep`
 (and the benchmark) reuse a stored model whose configuration matches instead of training it
@@ -36,14 +38,14 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from swiptopt import ENV_ID
-from swiptopt.env import INFO_KEY, AuvSwiptEnv, check_layout_seeds
+from swiptopt.env import INFO_KEY, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import Scenario
+from swiptopt.worlds import ENV_IDS, GRID, check_world, make_env
 
 #: The algorithms :func:`train_deep` trains, by name, with their SB3 class. Any other SB3
 #: algorithm is named by its class as ``"package.module:Class"`` (``"stable_baselines3:A2C"``).
-DEEP_ALGORITHMS = {"dqn": "DQN", "ppo": "PPO"}
+DEEP_ALGORITHMS = {"dqn": "DQN", "ppo": "PPO", "sac": "SAC"}
 #: ``"package.module:Class"``: an algorithm class named by where it lives.
 CLASS_PATH = re.compile(r"[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*")
 #: The attribute a saved model carries with the :func:`deep_config_hash` it was trained for
@@ -125,9 +127,12 @@ class DeepConfig:
     layout_seeds: range | tuple[int, ...] | None = None
     """Train across these layouts, one drawn per episode; ``None``: the scenario's layout. A
     ``range`` stays a range (it names its layouts by start, stop and step)."""
+    world: str = GRID
+    """The world trained in (:mod:`swiptopt.worlds`): ``"grid"`` or ``"continuous"``."""
 
     def __post_init__(self) -> None:
         _check_algorithm(self.algorithm)
+        object.__setattr__(self, "world", check_world(self.world))
         object.__setattr__(self, "timesteps", _check_int("timesteps", self.timesteps, 1))
         object.__setattr__(self, "seed", _check_int("seed", self.seed, 0))
         for name in ("hyperparams", "policy_kwargs"):
@@ -159,7 +164,10 @@ class DeepConfig:
                 )
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        """The configuration as plain data; the world only when it is not the grid, so the
+        grid's configurations (and the hashes of models stored before there were worlds)
+        read as before."""
+        out = {
             "algorithm": self.algorithm,
             "timesteps": self.timesteps,
             "seed": self.seed,
@@ -167,6 +175,9 @@ class DeepConfig:
             "policy_kwargs": dict(self.policy_kwargs),
             "layout_seeds": _layout_seeds_dict(self.layout_seeds),
         }
+        if self.world != GRID:
+            out["world"] = self.world
+        return out
 
 
 def _layout_seeds_dict(seeds: range | tuple[int, ...] | None) -> Any:
@@ -242,14 +253,14 @@ def _canonical(value: Any) -> Any:
 
 def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
     """A hex SHA-256 naming a training run: the configuration (algorithm, timesteps, seed,
-    settings, layouts), the scenario, the observation, the environment's id and version, and
-    the versions of Stable-Baselines3, torch and Gymnasium. Equal hashes mean the same
-    trained model."""
+    settings, layouts, world), the scenario, the observation, the environment's id and
+    version (the world's), and the versions of Stable-Baselines3, torch and Gymnasium. Equal
+    hashes mean the same trained model; a grid model and a continuous one never share one."""
     payload = {
         "config": config.to_dict(),
         "scenario": scenario.to_dict(),
         "observation": OBSERVATION,
-        "env": ENV_ID,
+        "env": ENV_IDS[config.world],
         "versions": _versions(),
     }
     text = json.dumps(payload, sort_keys=True, default=_canonical, allow_nan=True)
@@ -284,12 +295,18 @@ def _episode_log_callback() -> Any:
 def _training_env(scenario_or_env: Any, config: DeepConfig) -> tuple[Any, Scenario | None]:
     """The environment to train on, and the scenario it was built from (if it was)."""
     if isinstance(scenario_or_env, Scenario):
-        env = AuvSwiptEnv(scenario_or_env, observation=OBSERVATION, layout_seeds=config.layout_seeds)
+        env = make_env(config.world, scenario_or_env, observation=OBSERVATION, layout_seeds=config.layout_seeds)
         return env, scenario_or_env
     if config.layout_seeds is not None:
         raise ConfigError(
             "layout_seeds apply when training on a Scenario; an environment given as such keeps its own layouts",
             "layout_seeds",
+        )
+    if config.world != GRID:
+        raise ConfigError(
+            f"world = {config.world!r} applies when training on a Scenario; an environment given as such is its "
+            "own world",
+            "world",
         )
     if not hasattr(scenario_or_env, "observation_space") or not hasattr(scenario_or_env, "step"):
         raise ConfigError(
@@ -315,17 +332,21 @@ def train_deep(
     hyperparams: Mapping[str, Any] | None = None,
     policy_kwargs: Mapping[str, Any] | None = None,
     layout_seeds: Sequence[int] | None = None,
+    world: str = GRID,
 ) -> DeepResult:
-    """Train ``algorithm`` (``"ppo"``, ``"dqn"``) for ``timesteps`` environment steps.
+    """Train ``algorithm`` (``"ppo"``, ``"dqn"``, ``"sac"``) for ``timesteps`` environment steps.
 
-    On a :class:`~swiptopt.Scenario`: an :class:`~swiptopt.env.AuvSwiptEnv` with the vector
-    observation, on the scenario's layout or, with ``layout_seeds``, on one of those drawn
-    per episode (a policy for many layouts). On a Gymnasium environment: that environment as
-    it is (any with a Box observation; the benchmarks train on CartPole this way).
-    ``hyperparams`` are SB3 constructor arguments, ``policy_kwargs`` SB3's. The same
-    arguments give the same model, bit for bit (see the module docstring).
+    On a :class:`~swiptopt.Scenario`: the environment of ``world`` (:func:`swiptopt.worlds.make_env`:
+    the grid's :class:`~swiptopt.env.AuvSwiptEnv` with the vector observation, or the
+    continuous world's env), on the scenario's layout or, with ``layout_seeds``, on one of
+    those drawn per episode (a policy for many layouts). DQN needs the grid's discrete
+    actions and SAC the continuous world's box; the other pairings are refused in one line.
+    On a Gymnasium environment: that environment as it is (any with a Box observation; the
+    benchmarks train on CartPole this way). ``hyperparams`` are SB3 constructor arguments,
+    ``policy_kwargs`` SB3's. The same arguments give the same model, bit for bit (see the
+    module docstring).
     """
-    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world)
     config.check_hyperparams()
     env, scenario = _training_env(scenario_or_env, config)
     pin_torch()
@@ -341,6 +362,9 @@ def train_deep(
             **config.hyperparams,
         )
     except (TypeError, ValueError, AssertionError) as exc:
+        if "action spaces" in str(exc):  # SB3's check of the algorithm against the env's actions
+            whose = f"the {config.world} world's actions" if scenario is not None else "the environment's actions"
+            raise ConfigError(f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world") from None
         raise ConfigError(f"{config.algorithm} rejected its settings: {exc}", "hyperparams") from None
     log = _episode_log_callback()
     start = time.perf_counter()
@@ -432,6 +456,7 @@ def train_or_load_deep(
     hyperparams: Mapping[str, Any] | None = None,
     policy_kwargs: Mapping[str, Any] | None = None,
     layout_seeds: Sequence[int] | None = None,
+    world: str = GRID,
 ) -> DeepResult:
     """:func:`train_deep`, reusing ``directory/<algorithm>-<hash>.zip`` when it exists.
 
@@ -444,7 +469,7 @@ def train_or_load_deep(
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
-    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds)
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world)
     key = deep_config_hash(config, scenario)
     path = model_path(directory, config, scenario)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -465,6 +490,7 @@ def train_or_load_deep(
             hyperparams=hyperparams,
             policy_kwargs=policy_kwargs,
             layout_seeds=layout_seeds,
+            world=world,
         )
         save_deep(result, path)
     return dataclasses.replace(result, config_hash=key, note=note)

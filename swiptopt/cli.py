@@ -131,40 +131,46 @@ def _with_run_options(fn):  # type: ignore[no-untyped-def]
     return fn
 
 
-def _run_and_report(experiment, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    """Run each experiment (one, or a list run one after the other into one store), print
+    each one's tables as it finishes, and write them all to ``output``."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
+    experiments = experiments if isinstance(experiments, list) else [experiments]
     if quick:
-        experiment = experiment.quick()
+        experiments = [e.quick() for e in experiments]
     # every path and address is checked before the store opens and any task runs
     check_output_file(output, "--output")
     check_run_options(workers, scheduler)
     console = Console(stderr=True)
+    texts, failures = [], []
     with ResultStore(store_path or DEFAULT_STORE) as store:
-        with Progress(
-            TextColumn(f"[bold]{experiment.name}[/]"), BarColumn(), MofNCompleteColumn(),
-            TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
-        ) as progress:
-            bar = progress.add_task(experiment.name, total=None)
+        for experiment in experiments:
+            with Progress(
+                TextColumn(f"[bold]{experiment.name}[/]"), BarColumn(), MofNCompleteColumn(),
+                TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
+            ) as progress:
+                bar = progress.add_task(experiment.name, total=None)
 
-            def update(done: int, todo: int) -> None:
-                progress.update(bar, completed=done, total=todo)
+                def update(done: int, todo: int) -> None:
+                    progress.update(bar, completed=done, total=todo)
 
-            report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update)
-        failed = f", {report.failed} failed" if report.failed else ""
-        console.print(
-            f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in {report.seconds:.1f} s "
-            f"-> {store.path}"
-        )
-        text = _print_table(experiment, store, fmt)
+                report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update)
+            failed = f", {report.failed} failed" if report.failed else ""
+            console.print(
+                f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
+                f"{report.seconds:.1f} s -> {store.path}"
+            )
+            texts.append(_print_table(experiment, store, fmt, caption=len(experiments) > 1))
+            failures += report.failures
     if output:
-        _write_output(output, text)
-    _report_failures(console, report.failures)
-    if report.failed:
+        _write_output(output, "\n".join(texts))
+    _report_failures(console, failures)
+    if failures:
         raise click.exceptions.Exit(EXIT_TASKS_FAILED)
 
 
@@ -182,21 +188,33 @@ def _missing_note(experiment, store, missing: int) -> str:  # type: ignore[no-un
     return "; ".join(parts)
 
 
-def _print_table(experiment, store, fmt) -> str:  # type: ignore[no-untyped-def]
+def _print_table(experiment, store, fmt, caption: bool = False) -> str:  # type: ignore[no-untyped-def]
     """Print the experiment's tables; returns them as text for --output (Markdown for the
-    terminal format)."""
+    terminal format).
+
+    The terminal titles name the experiment and its world. With ``caption`` (several
+    experiments printed one after the other), the text formats start with a caption line
+    that does so too (Markdown: a bold line; LaTeX: a comment; CSV: a line on stderr, so
+    the data stays plain CSV)."""
     from rich.console import Console
 
     from swiptopt.benchmark import tables
 
     rows, missing = tables.aggregate(experiment, store)
     note = _missing_note(experiment, store, missing)
-    title = f"{experiment.name}: mean ± 95 % CI over layouts" + (f" ({note})" if note else "")
+    title = f"{tables.suite_title(experiment)}: mean ± 95 % CI over layouts" + (f" ({note})" if note else "")
+    head = ""
+    if caption and fmt in ("terminal", "markdown"):
+        head = f"**{tables.suite_title(experiment)}**\n\n"
+    elif caption and fmt == "latex":
+        head = f"% {tables.suite_title(experiment)}\n"
+    elif caption and fmt == "csv":
+        click.echo(tables.suite_title(experiment), err=True)
     if fmt == "terminal":
         Console(width=max(160, Console().width)).print(tables.to_rich(rows, title))
-        text = tables.to_markdown(rows)  # what --output writes
+        text = head + tables.to_markdown(rows)  # what --output writes
     else:
-        text = tables.render(rows, fmt)
+        text = head + tables.render(rows, fmt)
         click.echo(text, nl=False)
         if note:
             click.echo(f"{experiment.name}: {note}", err=True)
@@ -229,40 +247,53 @@ class _ListsExperiments(click.Command):
         super().format_epilog(ctx, formatter)
 
 
+#: ``compare --suite``: the suites by name, as built-in experiments, in the order they run.
+SUITES = {"standard": ("compare",), "harbour": ("harbour",), "all": ("compare", "harbour")}
+#: What the help calls each suite.
+_SUITE_HEADINGS = {"compare": "The standard suite (built-in experiment 'compare')",
+                   "harbour": "The harbour suite (built-in experiment 'harbour')"}
+
+
 class _DescribesSuite(click.Command):
-    """``compare``: its help ends with what the standard suite holds, read from the experiment."""
+    """``compare``: its help ends with what each suite holds, read from the experiments."""
 
     def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         from swiptopt.benchmark.experiment import builtin_experiments
 
-        suite = builtin_experiments()["compare"]
-        scenario = ", ".join(f"{k} = {v}" for k, v in suite.scenario.items())
-        rows = [
-            ("scenario", scenario),
-            ("algorithms", ", ".join(suite.algorithms)),
-            ("layouts", f"{len(suite.layout_seeds())} node layouts (layout seeds "
-                        f"{', '.join(map(str, suite.layout_seeds()))}), {suite.seeds} seed each "
-                        "(deep RL: its training_seeds)"),
-            ("episodes", f"{suite.episodes} greedy evaluation episodes per task"),
-            ("baseline", suite.baseline or "none"),
-        ]
-        with formatter.section("The standard suite (built-in experiment 'compare')"):
-            formatter.write_dl(rows)
+        for name, heading in _SUITE_HEADINGS.items():
+            suite = builtin_experiments()[name]
+            scenario = ", ".join(f"{k} = {v}" for k, v in suite.scenario.items())
+            rows = [
+                ("world", suite.world),
+                ("scenario", scenario),
+                ("algorithms", ", ".join(suite.algorithms)),
+                ("layouts", f"{len(suite.layout_seeds())} node layouts (layout seeds "
+                            f"{', '.join(map(str, suite.layout_seeds()))}), {suite.seeds} seed each "
+                            "(deep RL: its training_seeds)"),
+                ("episodes", f"{suite.episodes} greedy evaluation episodes per task"),
+                ("baseline", suite.baseline or "none"),
+            ]
+            with formatter.section(heading):
+                formatter.write_dl(rows)
         super().format_epilog(ctx, formatter)
 
 
 @cli.command(cls=_DescribesSuite)
+@click.option("--suite", type=click.Choice(list(SUITES)), default="all", show_default=True,
+              help="standard: the paper's grid world; harbour: the continuous world around obstacles; all: both.")
 @_with_run_options
-def compare(quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
-    """Every algorithm on the standard suite, as one table (the main job).
+def compare(suite, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+    """Every algorithm on the standard suite (the paper's grid world) and on the harbour
+    suite (the continuous world), a table each (the main job).
 
     Prints every metric with a 95 % confidence interval over layouts, then every algorithm
-    against the baseline, layout by layout. Finished tasks go to the store, so a second
-    run only prints.
+    against the suite's baseline, layout by layout. Finished tasks go to the store, so a
+    second run only prints.
     """
     from swiptopt.benchmark.experiment import builtin_experiments
 
-    _run_and_report(builtin_experiments()["compare"], quick, store_path, workers, scheduler, fmt, output)
+    builtins = builtin_experiments()
+    _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output)
 
 
 def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:

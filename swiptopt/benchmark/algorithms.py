@@ -44,6 +44,7 @@ from planners.optimal import BUDGETS
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size, limits, training_log_note
 from swiptopt.validation import Spec, check_keys, check_value
+from swiptopt.worlds import CONTINUOUS, GRID, WORLDS
 
 
 @dataclass(frozen=True)
@@ -103,13 +104,15 @@ class BuildContext:
     ``scenario`` is the task's scenario (its layout); ``seed_index`` the task's seed within
     its layout (0, 1, ...: the training seed of a model trained across layouts);
     ``training_layouts`` the experiment's training layouts (``None`` without); ``models_dir``
-    where trained models are kept and reused (``None``: nowhere, train in memory).
+    where trained models are kept and reused (``None``: nowhere, train in memory); ``world``
+    the world the task runs in (:mod:`swiptopt.worlds`).
     """
 
     scenario: Any
     seed_index: int = 0
     training_layouts: tuple[int, ...] | None = None
     models_dir: str | None = None
+    world: str = GRID
 
 
 @dataclass(frozen=True)
@@ -123,7 +126,10 @@ class Algorithm:
     (``"tabular"``, ``"vector"``, or ``None`` for planners, which read the environment);
     ``modules`` are native libraries the runner imports before its workers start (so their
     thread pools are limited to one thread); ``trains_model`` marks algorithms whose
-    training dominates a task's time (the runner starts those first).
+    training dominates a task's time (the runner starts those first). ``worlds`` are the
+    worlds it runs in (:mod:`swiptopt.worlds`; an experiment in another world refuses it);
+    ``uses_ompl(settings)`` says whether a task with these resolved settings plans with
+    OMPL (the runner then gives it a fresh process, its OMPL seed set from the task).
     """
 
     name: str
@@ -137,6 +143,8 @@ class Algorithm:
     trains_model: bool = False
     check: Callable[[dict[str, Any]], None] | None = None
     """Checks between settings (called with the resolved settings; raises ConfigError)."""
+    worlds: tuple[str, ...] = (GRID,)
+    uses_ompl: Callable[[dict[str, Any]], bool] | None = None
 
     @property
     def defaults(self) -> dict[str, Any]:
@@ -145,8 +153,10 @@ class Algorithm:
 
 def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-        from rl import TabularConfig, make_agent, train
+        from rl import TabularConfig, UniformRandomAgent, make_agent, train
 
+        if context.world == CONTINUOUS:  # only the random agent runs there: uniform velocity commands
+            return UniformRandomAgent.for_space(env.action_space, seed=seed)
         settings = dict(settings)
         episodes = settings.pop("train_episodes")
         backend = settings.pop("backend")
@@ -159,13 +169,14 @@ def _rl(algorithm: str) -> Callable[[Any, dict[str, Any], int, BuildContext], An
     return build
 
 
-def _planner(cls_name: str, *, seeded: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
-    """Build ``planners.<cls_name>`` from the settings (and the task's seed when ``seeded``)."""
+def _planner(cls_name: str, *, seeded: bool = False,
+             module: str = "planners") -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+    """Build ``<module>.<cls_name>`` from the settings (and the task's seed when ``seeded``)."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-        import planners
+        import importlib
 
-        cls = getattr(planners, cls_name)
+        cls = getattr(importlib.import_module(module), cls_name)
         return cls(seed=seed, **settings) if seeded else cls(**settings)
 
     return build
@@ -294,6 +305,17 @@ _DQN = {
 }
 
 
+_SAC = {
+    # a tenth of SB3's million-transition default holds the whole of a 100 000-step run
+    "buffer_size": Setting(default=100_000, kind="int", lo=1, hi=10**8, quick=1000, doc="replay buffer, transitions"),
+    "learning_starts": Setting(default=1000, kind="int", lo=0, hi=10**9, quick=100,
+                               doc="steps of uniform random actions before learning starts"),
+    "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, doc="minibatch size (SB3's default)"),
+    "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000, doc="environment steps between updates"),
+    "gradient_steps": Setting(default=1, kind="int", lo=1, hi=1_000_000, doc="gradient steps per update"),
+}
+
+
 def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
     """The SB3 constructor arguments among resolved deep-RL settings (unset ones left out,
     so SB3's defaults apply and do not enter the model's hash)."""
@@ -317,7 +339,7 @@ def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
             scenario = scenario.replace(layout_seed=layouts[0])
             seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
         arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
-                         layout_seeds=layouts)
+                         layout_seeds=layouts, world=context.world)
         if context.models_dir is None:
             return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
         return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed, **arguments)
@@ -335,21 +357,37 @@ def _deep_record(policy: Any, env: Any) -> dict[str, Any]:
     return out
 
 
-def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = None, *, name: str = "") -> Algorithm:
+def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = None, *, name: str = "",
+                  worlds: tuple[str, ...] = (GRID,)) -> Algorithm:
     """A benchmark algorithm for a Stable-Baselines3 algorithm on the ``vector`` observation.
 
-    ``sb3`` is ``"ppo"``, ``"dqn"`` or a class as ``"package.module:Class"`` (e.g.
+    ``sb3`` is ``"ppo"``, ``"dqn"``, ``"sac"`` or a class as ``"package.module:Class"`` (e.g.
     ``"stable_baselines3:A2C"``). It gets the common deep-RL settings (``timesteps``,
     ``net_arch``, ``learning_rate``, ``discount``, ``training``, ``training_seeds``) and
     ``settings`` (more SB3 constructor arguments, under their own names). Models are kept
     under the results directory and reused when a task's configuration matches. ``name``
-    defaults to the registered name (the entry point's or the ``[plugins]`` key).
+    defaults to the registered name (the entry point's or the ``[plugins]`` key); ``worlds``
+    are the worlds whose actions it can take (the grid's discrete moves, the continuous
+    world's box).
     """
     return Algorithm(name or label.lower(), label, "rl", {**_DEEP_COMMON, **(settings or {})}, _deep(sb3),
-                     _deep_record, observation="vector", modules=("torch",), trains_model=True)
+                     _deep_record, observation="vector", modules=("torch",), trains_model=True, worlds=worlds)
 
 
 _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
+
+#: The hover points of the continuous-world planners (planners.continuous): both place them
+#: alike; the OMPL tour then plans its legs around obstacles and against the current.
+_HOVER_POINTS = {
+    "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes, hi_doc="n_nodes",
+                 doc="hover points (default: every K up to k_max tried, the best tour kept)"),
+    "k_max": Setting(default=8, kind="int", lo=1, hi=100, doc="largest K tried"),
+}
+_OMPL_TOUR = {
+    **_HOVER_POINTS,
+    "ompl_iterations": Setting(default=2000, kind="int", lo=1, hi=10**7, quick=200,
+                               doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
+}
 
 ALGORITHMS: dict[str, Algorithm] = {
     a.name: a
@@ -360,9 +398,10 @@ ALGORITHMS: dict[str, Algorithm] = {
                   check=_check_tabular("sarsa")),
         Algorithm("random", "random", "rl", {**_RL_TRAINING, "train_episodes": Setting(
             default=0, kind="int", lo=0, limit="max_training_episodes", doc="ignored: the random agent learns nothing",
-        )}, _rl("random"), observation="tabular"),
-        sb3_algorithm("ppo", "PPO", _PPO, name="ppo"),
+        )}, _rl("random"), observation="tabular", worlds=WORLDS),
+        sb3_algorithm("ppo", "PPO", _PPO, name="ppo", worlds=WORLDS),
         sb3_algorithm("dqn", "DQN", _DQN, name="dqn"),
+        sb3_algorithm("sac", "SAC", _SAC, name="sac", worlds=(CONTINUOUS,)),
         Algorithm(
             "kmeans_tsp",
             "k-means + TSP",
@@ -393,6 +432,7 @@ ALGORITHMS: dict[str, Algorithm] = {
                                         doc="extra hover steps while covered nodes hold data (the old planner: 2)"),
             },
             _planner("RewardKMeansTspPlanner", seeded=True),
+            uses_ompl=lambda settings: settings.get("tour_costs") == "ompl",
         ),
         Algorithm(
             "lawnmower",
@@ -413,6 +453,11 @@ ALGORITHMS: dict[str, Algorithm] = {
             _planner("GreedyPlanner"),
         ),
         Algorithm("rate_greedy", "rate-greedy", "planner", {}, _planner("RateGreedyPlanner")),
+        Algorithm("ompl_tour", "OMPL tour", "planner", _OMPL_TOUR,
+                  _planner("OmplTourPlanner", seeded=True, module="planners.continuous"),
+                  worlds=(CONTINUOUS,), uses_ompl=lambda settings: True),
+        Algorithm("straight_line", "straight line", "planner", dict(_HOVER_POINTS),
+                  _planner("StraightLinePlanner", seeded=True, module="planners.continuous"), worlds=(CONTINUOUS,)),
         Algorithm(
             "milp",
             "MILP",
@@ -621,6 +666,20 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
             )
 
 
+def check_world_of(name: str, world: str) -> None:
+    """A :class:`ConfigError` unless algorithm ``name`` runs in ``world``, naming the
+    algorithm, the worlds it runs in and the algorithms that run in ``world``."""
+    algorithm = get_algorithm(name)
+    if world in algorithm.worlds:
+        return
+    here = [n for n, a in ALGORITHMS.items() if world in a.worlds]
+    raise ConfigError(
+        f"algorithms.{name}: {algorithm.label} runs in the {' and '.join(algorithm.worlds)} world only, not in this "
+        f"experiment's world = {world!r}; the algorithms of the {world} world are {', '.join(here)}",
+        "world",
+    )
+
+
 def quick_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
     """``settings`` shrunk for a smoke test (``--quick``): each setting with a ``quick`` value
     capped at it (numbers) or replaced by it (anything else)."""
@@ -674,6 +733,7 @@ __all__ = [
     "Setting",
     "build_policy",
     "check_settings_for",
+    "check_world_of",
     "labels",
     "quick_settings",
     "resolve_settings",

@@ -72,6 +72,7 @@ from swiptopt.benchmark.algorithms import (
     TRAINING,
     TRAINING_SEEDS,
     check_settings_for,
+    check_world_of,
     load_plugin,
     quick_settings,
     resolve_settings,
@@ -82,6 +83,7 @@ from swiptopt.tomlfile import read_toml
 from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.scenario import Scenario, ScenarioError
+from swiptopt.worlds import CONTINUOUS, GRID, check_world
 
 
 #: Evaluation seeds of a task start this far from its training seed.
@@ -90,7 +92,7 @@ EVALUATION_OFFSET = 1_000_003
 SEEDS_PER_LAYOUT = 1000
 
 TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline",
-            "training_layouts", "plugins"}
+            "training_layouts", "plugins", "world"}
 #: The largest layout seed an experiment names: a task's seed, 1000 x layout + s, and its
 #: evaluation seeds then stay below 2**32 (what NumPy's and torch's legacy seeding take).
 MAX_LAYOUT = 1_000_000
@@ -124,18 +126,22 @@ class Task:
     """Where the task's model was trained, for an algorithm that trains across layouts."""
     plugin: str = ""
     """The factory of a plugin algorithm (``package.module:function``), from ``[plugins]``."""
+    world: str = GRID
+    """The world the task runs in (:mod:`swiptopt.worlds`)."""
 
     @property
     def key(self) -> str:
         """Hash of everything that determines the result (not the experiment's name). The
-        training layouts and the plugin's factory enter it only when set, so the keys of
-        tasks without them are those of earlier versions."""
+        training layouts, the plugin's factory and a world other than the grid enter it only
+        when set, so the keys of tasks without them are those of earlier versions."""
         content: dict[str, Any] = {"scenario": self.scenario, "algorithm": self.algorithm, "settings": self.settings,
                                    "seed": self.seed, "episodes": self.episodes}
         if self.training_layouts is not None:
             content["training_layouts"] = list(self.training_layouts)
         if self.plugin:
             content["plugin"] = self.plugin
+        if self.world != GRID:
+            content["world"] = self.world
         payload = json.dumps(content, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(payload.encode()).hexdigest()
 
@@ -163,9 +169,12 @@ class Experiment:
     """Where algorithms that train across layouts train (``None``: none do)."""
     plugins: dict[str, str] = field(default_factory=dict)
     """Algorithms from outside the project: name -> ``package.module:factory``."""
+    world: str = GRID
+    """The world every task runs in (:mod:`swiptopt.worlds`): ``"grid"`` or ``"continuous"``."""
 
     def __post_init__(self) -> None:
         _check_name(self.name)
+        object.__setattr__(self, "world", check_world(self.world))
         for key in ("description", "baseline"):
             if not isinstance(getattr(self, key), str):
                 raise ConfigError(f"{key} = {getattr(self, key)!r} must be a string", key)
@@ -179,6 +188,8 @@ class Experiment:
         scenario = check_keys("[scenario]", self.scenario, "scenario")
         if "layout_seed" in scenario:
             raise ConfigError("scenario.layout_seed cannot be set: layouts are set by 'layouts'", "layout_seed")
+        if "world" in scenario:
+            _misplaced_world("scenario.world")
         plugins = check_keys("[plugins]", self.plugins, "plugins")
         for name, source in plugins.items():
             load_plugin(name, source)
@@ -190,7 +201,12 @@ class Experiment:
         if unused:
             raise ConfigError(f"plugins.{unused[0]} is registered but not run: add [algorithms.{unused[0]}] or remove it",
                               "plugins")
+        for name, settings in algorithms.items():
+            if isinstance(settings, dict) and "world" in settings:
+                _misplaced_world(f"algorithms.{name}.world")
         resolved = {name: resolve_settings(name, settings) for name, settings in algorithms.items()}
+        for name in algorithms:
+            check_world_of(name, self.world)
         self._check_training_layouts(resolved)
         if self.baseline and self.baseline not in algorithms:
             raise ConfigError(
@@ -273,6 +289,9 @@ class Experiment:
         sweep = check_keys("[sweep]", self.sweep, "sweep")
         names = {f.name for f in dataclasses.fields(Scenario)}
         for key, values in sweep.items():
+            if key == "world":
+                raise ConfigError("sweep.world: a sweep cannot change the world; run one experiment per world "
+                                  "(world = ... at the top of each file)", "world")
             if key not in names or key == "layout_seed":
                 raise ConfigError(
                     f"sweep key {key!r}{did_you_mean(key, names)} is not a scenario field "
@@ -330,6 +349,7 @@ class Experiment:
             baseline=data.get("baseline", ""),
             training_layouts=data.get("training_layouts"),
             plugins=dict(data.get("plugins", {})),
+            world=data.get("world", GRID),
         )
 
     @classmethod
@@ -385,7 +405,7 @@ class Experiment:
                     training = tuple(self.training_layouts) if across and self.training_layouts else None
                     for s in range(self.seeds_of(settings)):
                         out.append(Task(self.name, scenario, name, task_settings, SEEDS_PER_LAYOUT * layout + s,
-                                        self.episodes, point, training, self.plugins.get(name, "")))
+                                        self.episodes, point, training, self.plugins.get(name, ""), self.world))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -409,6 +429,21 @@ COMPARE_DEEP_TIMESTEPS = 30_000
 _COMPARE_DEEP = {
     "ppo": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
     "dqn": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
+}
+#: The harbour suite: the continuous world on the harbour preset (a pier, a moored hull, a
+#: wreck, a sloping seabed and a current), where straight lines are wrong.
+_HARBOUR_LAYOUTS = 5
+#: Deep RL in the harbour suite: one model per algorithm and training seed, trained across
+#: the suite's layouts, at budgets that keep `make compare` (both suites) within about ten
+#: minutes on two cores. SAC learns from every step but costs several times PPO per step.
+HARBOUR_SAC_TIMESTEPS = 10_000
+HARBOUR_PPO_TIMESTEPS = 30_000
+_HARBOUR_ALGORITHMS = {
+    "ompl_tour": {},
+    "straight_line": {},
+    "sac": {"timesteps": HARBOUR_SAC_TIMESTEPS, "training": "across_layouts"},
+    "ppo": {"timesteps": HARBOUR_PPO_TIMESTEPS, "training": "across_layouts"},
+    "random": {},
 }
 #: The generalisation experiment: deep RL trained on layouts 1000..1199, evaluated on the
 #: held-out layouts 0..9, at a larger budget than the standard suite's.
@@ -434,6 +469,14 @@ def _check_layout_list(key: str, values: Any) -> tuple[int, ...]:
     return out
 
 
+def _misplaced_world(where: str) -> None:
+    raise ConfigError(
+        f"{where}: the world is the experiment's, not a setting here: write world = {CONTINUOUS!r} (or {GRID!r}) "
+        "at the top of the file, before any [table]",
+        "world",
+    )
+
+
 def _check_name(name: Any) -> None:
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name) or ".." in name or not name.strip("."):
         raise ConfigError(
@@ -448,7 +491,8 @@ def _builtin(name: str, description: str, **fields: Any) -> Experiment:
 
 
 def builtin_experiments() -> dict[str, Experiment]:
-    """The named experiments: ``compare``, ``generalisation`` and one per figure of the paper."""
+    """The named experiments: ``compare`` (the standard suite), ``harbour`` (the continuous
+    world's suite), ``generalisation`` and one per figure of the paper."""
     paper = {"preset": "paper"}
     return {
         e.name: e
@@ -464,6 +508,19 @@ def builtin_experiments() -> dict[str, Experiment]:
                 training_layouts=tuple(range(_COMPARE_LAYOUTS)),
                 episodes=10,
                 baseline="random",
+            ),
+            _builtin(
+                "harbour",
+                "the continuous world on the harbour preset (pier, hull, wreck, sloping seabed, current): the "
+                f"OMPL tour against straight lines, SAC and PPO (trained across the {_HARBOUR_LAYOUTS} layouts, "
+                f"{HARBOUR_SAC_TIMESTEPS:,} and {HARBOUR_PPO_TIMESTEPS:,} steps, 3 seeds) and random actions",
+                world=CONTINUOUS,
+                scenario={"preset": "harbour"},
+                algorithms=_HARBOUR_ALGORITHMS,
+                layouts=_HARBOUR_LAYOUTS,
+                training_layouts=tuple(range(_HARBOUR_LAYOUTS)),
+                episodes=10,
+                baseline="straight_line",
             ),
             _builtin(
                 "generalisation",

@@ -12,7 +12,8 @@ What can go wrong, and what happens then:
 
 - A task that raises is a *failure*: recorded in the store with its reason (a rerun
   retries it), and the other tasks go on.
-- A task that uses OMPL (``tour_costs = "ompl"``) runs in a fresh process, whose
+- A task that uses OMPL (``tour_costs = "ompl"``, the continuous world's OMPL tour: its
+  algorithm's ``uses_ompl``) runs in a fresh process, whose
   process-wide OMPL seed is set from the task before anything plans: its numbers do not
   depend on which tasks ran before it, and a crash inside OMPL is that task's failure.
 - A worker that dies (any native crash) loses only the tasks it held: they are run again
@@ -93,23 +94,28 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     from planners.bounds import EXACT_STATE_LIMIT, exact_optimum, exact_state_bound, upper_bound
     from swiptopt.benchmark.algorithms import BuildContext, build_policy, get_algorithm, task_extra
     from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
-    from swiptopt.env import AuvSwiptEnv
     from swiptopt.evaluation import evaluate
     from swiptopt.scenario import Scenario
+    from swiptopt.worlds import GRID, make_env
 
     start = time.perf_counter()
     task, models_dir = _split(task)
     t = Task(**task)
     algorithm = get_algorithm(t.algorithm, t.plugin)  # registers a plugin in this process
     scenario = Scenario.from_dict(t.scenario)
-    env = AuvSwiptEnv(scenario, observation=algorithm.observation or "tabular")
+    grid = t.world == GRID
+    # the continuous world has one observation (the vector); planners read the env itself
+    env = make_env(t.world, scenario, observation=(algorithm.observation or "tabular") if grid else None)
     training = tuple(t.training_layouts) if t.training_layouts is not None else None
-    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir)
+    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world)
     policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
     result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_OFFSET)
-    bound = upper_bound(scenario, env.tables)
-    extra: dict[str, Any] = {"upper_bound_return": bound.return_, **task_extra(t.algorithm, policy, env)}
-    if scenario.name == "tiny" and scenario.channel == "none" and scenario.failure_prob_max == 0:
+    extra: dict[str, Any] = task_extra(t.algorithm, policy, env)
+    if grid:
+        # the bound counts the nodes coverable from the grid's cells: in the continuous world a
+        # node may be coverable from off-lattice positions only, so it bounds nothing there
+        extra = {"upper_bound_return": upper_bound(scenario, env.tables).return_, **extra}
+    if grid and scenario.name == "tiny" and scenario.channel == "none" and scenario.failure_prob_max == 0:
         # decided before running: the search's size is bounded from the scenario alone
         states = exact_state_bound(scenario, env.tables)
         if states <= EXACT_STATE_LIMIT:
@@ -132,8 +138,10 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
 
 
 def uses_ompl(task: dict[str, Any]) -> bool:
-    """Whether the task plans with OMPL (and so must run in a fresh process)."""
-    return task["settings"].get("tour_costs") == "ompl"
+    """Whether the task plans with OMPL (and so must run in a fresh process): what its
+    algorithm's ``uses_ompl`` says of its settings."""
+    algorithm = _algorithm_of(task)
+    return algorithm is not None and algorithm.uses_ompl is not None and bool(algorithm.uses_ompl(task["settings"]))
 
 
 def ompl_seed(task: dict[str, Any]) -> int:
@@ -393,7 +401,7 @@ def _model_of(task: Task) -> tuple[Any, ...] | None:
     from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
 
     scenario = {k: v for k, v in task.scenario.items() if k != "layout_seed"}
-    return (task.algorithm, task.plugin, json.dumps([scenario, task.settings], sort_keys=True),
+    return (task.algorithm, task.plugin, task.world, json.dumps([scenario, task.settings], sort_keys=True),
             task.seed % SEEDS_PER_LAYOUT, tuple(task.training_layouts))
 
 

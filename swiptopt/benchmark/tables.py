@@ -312,10 +312,15 @@ def _paired_table(rows: list[PairedRow]) -> tuple[list[str], list[list[str]]]:
     return heads, cells
 
 
+def suite_title(experiment: Experiment) -> str:
+    """The experiment's name and its world, as the tables' titles begin: ``compare (grid world)``."""
+    return f"{experiment.name} ({experiment.world} world)"
+
+
 def paired_title(experiment: Experiment) -> str:
     label = labels().get(experiment.baseline, experiment.baseline)
     return (
-        f"{experiment.name}: mean / mean of {label} over the same layouts (seeds averaged), "
+        f"{suite_title(experiment)}: mean / mean of {label} over the same layouts (seeds averaged), "
         "[95 % bootstrap CI], layouts won"
     )
 
