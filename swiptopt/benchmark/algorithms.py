@@ -505,6 +505,9 @@ def _check_plugin(name: str, source: str, made: Any, where: str) -> Algorithm:
     if not isinstance(made.settings, dict) or not all(
             isinstance(k, str) and isinstance(v, Setting) for k, v in made.settings.items()):
         raise ConfigError(f"{where} = {source!r} returned an Algorithm whose settings are not Settings by name", name)
+    if not isinstance(made.worlds, tuple) or not made.worlds or not set(made.worlds) <= set(WORLDS):
+        raise ConfigError(f"{where} = {source!r} returned an Algorithm with worlds {made.worlds!r}: a non-empty tuple "
+                          f"of {', '.join(map(repr, WORLDS))}", name)
     if made.observation not in (None, *OBSERVATIONS):
         raise ConfigError(f"{where} = {source!r} returned an Algorithm with observation {made.observation!r}: "
                           f"one of {', '.join(OBSERVATIONS)} or None", name)

@@ -88,7 +88,7 @@ def test_every_setting_is_declared_with_a_type_and_a_range(name, key):
 def test_every_bad_setting_fails_at_construction_naming_the_experiment_key(name, key):
     for value in bad_values(name, key):
         with pytest.raises(ConfigError) as info:
-            experiment(algorithms={name: {key: value}})
+            experiment(algorithms={name: {key: value}}, world=ALGORITHMS[name].worlds[0])
         assert info.value.field == key
         message = str(info.value)
         assert f"algorithms.{name}.{key}" in message and repr(value) in message.replace(",", "")
