@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from swiptopt import ENV_ID
+from swiptopt import CONTINUOUS_ENV_ID, ENV_ID
 from swiptopt.errors import ConfigError, did_you_mean
 
 GRID = "grid"
@@ -21,7 +21,7 @@ CONTINUOUS = "continuous"
 #: Every world, the paper's first.
 WORLDS = (GRID, CONTINUOUS)
 #: The Gymnasium id of each world's environment.
-ENV_IDS = {GRID: ENV_ID, CONTINUOUS: "swiptopt/AuvSwiptContinuous-v0"}
+ENV_IDS = {GRID: ENV_ID, CONTINUOUS: CONTINUOUS_ENV_ID}
 #: The observations each world's environment offers (its default first).
 OBSERVATIONS = {GRID: ("tabular", "vector"), CONTINUOUS: ("vector",)}
 

@@ -126,7 +126,7 @@ def test_the_hash_names_every_part_of_the_configuration():
 
 
 def test_bad_configurations_are_config_errors(tmp_path):
-    with pytest.raises(swiptopt.ConfigError, match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'ppo'\]"):
+    with pytest.raises(swiptopt.ConfigError, match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'ppo', 'sac'\]"):
         train_deep("pp0", TINY, 100)
     with pytest.raises(swiptopt.ConfigError, match=r"unknown ppo setting 'nsteps' \(did you mean 'n_steps'\?\).*batch_size"):
         train_deep("ppo", TINY, 100, hyperparams={"nsteps": 64})
@@ -151,3 +151,74 @@ def test_import_rl_loads_no_torch():
     code = "import sys, rl, rl.deep; print([m for m in ('torch', 'stable_baselines3') if m in sys.modules])"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "[]"
+
+
+# ------------------------------------------------------------------ the continuous world
+
+#: A small harbour (its obstacles and current) for the continuous world: few nodes, short episodes
+HARBOUR = swiptopt.Scenario.preset("harbour", n_nodes=4, episode_steps=20)
+CONTINUOUS_SETTINGS = {
+    "ppo": {"n_steps": 64, "batch_size": 32, "n_epochs": 2},
+    "sac": {"buffer_size": 1_000, "learning_starts": 50, "batch_size": 32},
+}
+
+
+def _train_continuous(algorithm, seed=0, timesteps=200):
+    return train_deep(algorithm, HARBOUR, timesteps, seed, hyperparams=CONTINUOUS_SETTINGS[algorithm],
+                      policy_kwargs={"net_arch": [16]}, layout_seeds=(0, 1), world="continuous")
+
+
+def _continuous_observations(n=100):
+    from swiptopt.env_continuous import AuvSwiptContinuousEnv
+
+    env = AuvSwiptContinuousEnv(HARBOUR, layout_seeds=range(5))
+    rng = np.random.default_rng(0)
+    out = [env.reset(seed=0)[0]]
+    while len(out) < n:
+        obs, _, term, trunc, _ = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+        out.append(obs)
+        if term or trunc:
+            out.append(env.reset()[0])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("algorithm", ["sac", "ppo"])
+def test_continuous_control_trains_saves_loads_and_acts_identically(algorithm, tmp_path):
+    from swiptopt.env_continuous import AuvSwiptContinuousEnv
+
+    result = _train_continuous(algorithm)
+    assert result.config.world == "continuous" and result.config_hash == deep_config_hash(result.config, HARBOUR)
+    assert len(result.episode_returns) >= 200 // HARBOUR.episode_steps - 1
+    path = save_deep(result, tmp_path / "model.zip")
+    loaded = load_deep(path, algorithm, config_hash=result.config_hash)
+    obs = _continuous_observations()
+    trained, _ = result.model.predict(obs, deterministic=True)
+    again, _ = loaded.predict(obs, deterministic=True)
+    assert trained.shape == (len(obs), 3) and np.all(np.abs(trained) <= 1)
+    np.testing.assert_array_equal(trained, again)
+    assert np.ptp(trained, axis=0).max() > 0  # the actions depend on the observation
+    env = AuvSwiptContinuousEnv(HARBOUR)
+    a = swiptopt.evaluate(result.model, env, 2, seed=5)
+    assert swiptopt.evaluate(loaded, env, 2, seed=5).records == a.records
+    # the same seed trains the same model
+    twin = _train_continuous(algorithm)
+    for name, value in _parameters(result.model).items():
+        np.testing.assert_array_equal(value, _parameters(twin.model)[name])
+
+
+def test_the_world_names_the_model():
+    grid = DeepConfig("ppo", 1000, 0, {"n_steps": 64}, {"net_arch": [32]})
+    continuous = DeepConfig("ppo", 1000, 0, {"n_steps": 64}, {"net_arch": [32]}, world="continuous")
+    assert "world" not in grid.to_dict() and continuous.to_dict()["world"] == "continuous"
+    assert deep_config_hash(grid, HARBOUR) != deep_config_hash(continuous, HARBOUR)
+    with pytest.raises(swiptopt.ConfigError, match="world = 'grdi' is not a world"):
+        DeepConfig("ppo", 10, world="grdi")
+
+
+@pytest.mark.parametrize("algorithm, world, space", [("sac", "grid", "Discrete(7)"), ("dqn", "continuous", "Box")])
+def test_an_algorithm_that_cannot_take_the_worlds_actions_is_one_line(algorithm, world, space):
+    with pytest.raises(swiptopt.ConfigError) as info:
+        train_deep(algorithm, HARBOUR, 100, world=world)
+    message = str(info.value)
+    assert f"{algorithm} cannot act on {space}" in message and f"the {world} world's actions" in message
+    assert info.value.field == "world" and "\n" not in message
