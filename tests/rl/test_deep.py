@@ -159,11 +159,11 @@ def test_import_rl_loads_no_torch():
 HARBOUR = swiptopt.Scenario.preset("harbour", n_nodes=4, episode_steps=20)
 CONTINUOUS_SETTINGS = {
     "ppo": {"n_steps": 64, "batch_size": 32, "n_epochs": 2},
-    "sac": {"buffer_size": 1_000, "learning_starts": 50, "batch_size": 32},
+    "sac": {"buffer_size": 1_000, "learning_starts": 60, "batch_size": 32},
 }
 
 
-def _train_continuous(algorithm, seed=0, timesteps=200):
+def _train_continuous(algorithm, seed=0, timesteps=128):
     return train_deep(algorithm, HARBOUR, timesteps, seed, hyperparams=CONTINUOUS_SETTINGS[algorithm],
                       policy_kwargs={"net_arch": [16]}, layout_seeds=(0, 1), world="continuous")
 
@@ -188,7 +188,7 @@ def test_continuous_control_trains_saves_loads_and_acts_identically(algorithm, t
 
     result = _train_continuous(algorithm)
     assert result.config.world == "continuous" and result.config_hash == deep_config_hash(result.config, HARBOUR)
-    assert len(result.episode_returns) >= 200 // HARBOUR.episode_steps - 1
+    assert len(result.episode_returns) >= 128 // HARBOUR.episode_steps - 1
     path = save_deep(result, tmp_path / "model.zip")
     loaded = load_deep(path, algorithm, config_hash=result.config_hash)
     obs = _continuous_observations()
