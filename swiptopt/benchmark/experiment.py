@@ -435,10 +435,10 @@ _COMPARE_DEEP = {
 _HARBOUR_LAYOUTS = 5
 #: Deep RL in the harbour suite: one model per algorithm and training seed, trained across
 #: the suite's layouts, at budgets that keep `make compare` (both suites) within about ten
-#: minutes on two cores (benchmarks/continuous_rl_speed.py measures the rates). A SAC
-#: update costs about what ten of its environment steps do, so SAC updates every
-#: HARBOUR_SAC_TRAIN_FREQ steps: more experience for the same updates than SB3's one
-#: update per step.
+#: minutes on two cores (benchmarks/continuous_rl_speed.py measures the rates). SAC's
+#: gradient updates, not its environment steps, are its cost (about 35 steps/s with one
+#: update per step, 150 with one per four, on the loaded 2-core machine), so it updates every
+#: HARBOUR_SAC_TRAIN_FREQ steps: four times the experience for the same updates.
 HARBOUR_SAC_TIMESTEPS = 20_000
 HARBOUR_SAC_TRAIN_FREQ = 4
 HARBOUR_PPO_TIMESTEPS = 30_000
