@@ -131,9 +131,11 @@ def _with_run_options(fn):  # type: ignore[no-untyped-def]
     return fn
 
 
-def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
+                    caption=False) -> None:
     """Run each experiment (one, or a list run one after the other into one store), print
-    each one's tables as it finishes, and write them all to ``output``."""
+    each one's tables as it finishes (``caption``: each under its name and world, also in
+    the text formats), and write them all to ``output``."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
@@ -165,7 +167,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
                 f"{report.seconds:.1f} s -> {store.path}"
             )
-            texts.append(_print_table(experiment, store, fmt, caption=len(experiments) > 1))
+            texts.append(_print_table(experiment, store, fmt, caption=caption))
             failures += report.failures
     if output:
         _write_output(output, "\n".join(texts))
@@ -192,10 +194,10 @@ def _print_table(experiment, store, fmt, caption: bool = False) -> str:  # type:
     """Print the experiment's tables; returns them as text for --output (Markdown for the
     terminal format).
 
-    The terminal titles name the experiment and its world. With ``caption`` (several
-    experiments printed one after the other), the text formats start with a caption line
-    that does so too (Markdown: a bold line; LaTeX: a comment; CSV: a line on stderr, so
-    the data stays plain CSV)."""
+    The terminal titles name the experiment and its world. With ``caption`` (``compare``'s
+    suites, or several experiments printed one after the other), the text formats start
+    with a caption line that does so too (Markdown: a bold line; LaTeX: a comment; CSV: a
+    line on stderr, so the data stays plain CSV)."""
     from rich.console import Console
 
     from swiptopt.benchmark import tables
@@ -293,7 +295,8 @@ def compare(suite, quick, store_path, workers, scheduler, fmt, output) -> None: 
     from swiptopt.benchmark.experiment import builtin_experiments
 
     builtins = builtin_experiments()
-    _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output)
+    _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output,
+                    caption=True)
 
 
 def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -377,7 +380,7 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
         experiments = store.experiments(name)
         if not experiments:
             raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}", "experiment")
-        text = "\n".join(_print_table(experiment, store, fmt) for experiment in experiments)
+        text = "\n".join(_print_table(experiment, store, fmt, caption=len(experiments) > 1) for experiment in experiments)
     if output:
         _write_output(output, text)
 

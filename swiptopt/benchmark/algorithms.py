@@ -27,6 +27,13 @@ of two ways; both name a *factory*, a function of no arguments that returns an
 - ``[plugins] a2c = "my_algorithms:a2c"`` in an experiment file, for that experiment (the
   module must be importable: on ``PYTHONPATH`` or installed).
 
+Each algorithm runs in the worlds it declares (``worlds``: the paper's ``"grid"``, the
+``"continuous"`` world, or both; :mod:`swiptopt.worlds`): the grid's agents and planners
+there, SAC (``sac``) and the continuous planners (``ompl_tour``: hover points, a tour over
+OMPL energy paths, an executor that follows them; ``straight_line``: the same stops reached
+in straight lines) in the continuous world, PPO and the random agent (uniform velocity
+commands) in both. An experiment refuses an algorithm outside its world.
+
 Each algorithm acts on one observation of the environment (``observation``: ``"tabular"``
 for the paper's agents, ``"vector"`` for deep RL; planners read the environment itself). An
 experiment may say ``observation = ...`` among an algorithm's settings; any other value

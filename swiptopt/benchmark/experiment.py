@@ -14,6 +14,7 @@ evaluation episodes, and each scenario's grid).
 File format::
 
     name = "my-sweep"
+    world = "grid"       # optional: "grid" (the paper's, the default) or "continuous"
     layouts = 5          # layout seeds 0..4 per sweep point, or a list: layouts = [50, 51, 52]
     seeds = 1            # training/evaluation seeds per layout
     episodes = 10        # greedy evaluation episodes per task
@@ -48,6 +49,14 @@ agents do); held-out layouts (the ``generalisation`` experiment) measure general
 
 Seeds: a task's seed is ``1000 x layout + s`` for s in 0 .. seeds-1; an algorithm with a
 ``training_seeds`` setting (deep RL) runs that many seeds per layout instead of ``seeds``.
+
+Worlds: ``world`` (top-level, :mod:`swiptopt.worlds`) says where every task runs: the
+paper's grid, or the continuous world (a continuous position, velocity commands, motion
+stopped by obstacles; the ``harbour`` suite). Each algorithm declares the worlds it runs in
+(the tabular agents, DQN and the grid planners: the grid; SAC and the continuous planners:
+the continuous world; PPO and random: both), and an experiment naming one outside its
+world is refused before any task runs. A grid task's key is what it was before worlds
+existed; a continuous task's key includes its world.
 
 Plugins: ``[plugins] a2c = "my_module:factory"`` registers an algorithm from outside the
 project for this experiment (:mod:`swiptopt.benchmark.algorithms`); ``[algorithms.a2c]``

@@ -208,14 +208,16 @@ def test_workers_die_with_a_killed_run(tmp_path, executor):
 
 
 def test_compare_prints_the_same_tables_on_every_executor_and_every_run(tmp_path):
-    # --quick: every algorithm of compare (the MILP at its quick budget, PPO and DQN at 1024
-    # steps, one training seed) on 2 layouts, so the test takes a minute rather than several
+    # --quick: every algorithm of compare's standard suite (the MILP at its quick budget, PPO
+    # and DQN at 1024 steps, one training seed) on 2 layouts, so the test takes a minute
+    # rather than several (the harbour suite's twin is in test_worlds.py)
     tables = {}
     for name, executor in (("workers1", ["--workers", "1"]), ("workers2", ["--workers", "2"]),
                            ("dask", ["--scheduler", "local:2"])):
         output = tmp_path / f"{name}.md"
         result = subprocess.run(
-            [sys.executable, "-m", "swiptopt.cli", "compare", "--quick", "--store", str(tmp_path / f"{name}.sqlite"),
+            [sys.executable, "-m", "swiptopt.cli", "compare", "--suite", "standard", "--quick", "--store",
+             str(tmp_path / f"{name}.sqlite"),
              *executor,
              "--format", "markdown", "--output", str(output)],
             capture_output=True, text=True,

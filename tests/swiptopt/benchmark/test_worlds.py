@@ -197,3 +197,28 @@ def test_a_plugin_declares_its_worlds(tmp_path, monkeypatch):
         Experiment(**fields, plugins={"hover": "swiptopt_test_world_plugin:hover"})
     with pytest.raises(ConfigError, match=r"worlds \('ocean',\).*'grid', 'continuous'"):
         Experiment(**{**fields, "algorithms": {"nowhere": {}}}, plugins={"nowhere": "swiptopt_test_world_plugin:nowhere"})
+
+
+# ------------------------------------------------------------------ the harbour suite
+
+
+def test_compare_quick_harbour_prints_the_same_tables_with_one_worker_or_two(tmp_path, capsys):
+    """The harbour suite at --quick (2 layouts, SAC and PPO at 1024 steps, one training
+    seed, the OMPL tour at its quick budget): run twice, the second time on two workers and a
+    new store beside the first's models (so every task runs again: the OMPL tours in fresh
+    processes, the deep-RL tasks on the loaded models), the same tables."""
+    pytest.importorskip("planners.continuous")
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("ompl")
+    args = ["compare", "--quick", "--suite", "harbour", "--format", "markdown"]
+    assert main([*args, "--store", str(tmp_path / "a.sqlite"), "--workers", "1"]) == 0
+    first, err = capsys.readouterr()
+    assert "10 tasks: 0 already stored, 10 run" in err
+    assert main([*args, "--store", str(tmp_path / "b.sqlite"), "--workers", "2"]) == 0
+    second, err = capsys.readouterr()
+    assert "10 tasks: 0 already stored, 10 run" in err
+    assert second == first
+    assert first.startswith("**harbour (continuous world)**")
+    for label in ("OMPL tour", "straight line", "SAC", "PPO", "random"):
+        assert f"| {label} |" in first
+    assert first.count("×") == 4 * 5  # the paired table: four algorithms against the straight line
