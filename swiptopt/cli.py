@@ -133,8 +133,8 @@ def _with_run_options(fn):  # type: ignore[no-untyped-def]
 
 def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
                     caption=False) -> None:
-    """Run each experiment (one, or a list run one after the other into one store), print
-    each one's tables as it finishes (``caption``: each under its name and world, also in
+    """Run the experiments one after the other into one store, print each one's tables as
+    it finishes (``caption``: each under its name and world, also in
     the text formats), and write them all to ``output``."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -142,7 +142,6 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
-    experiments = experiments if isinstance(experiments, list) else [experiments]
     if quick:
         experiments = [e.quick() for e in experiments]
     # every path and address is checked before the store opens and any task runs
@@ -317,7 +316,7 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # ty
     """Run a built-in experiment (by NAME) or a TOML experiment file and print its table."""
     from swiptopt.benchmark.experiment import load_experiment
 
-    _run_and_report(load_experiment(spec), quick, store_path, workers, scheduler, fmt, output)
+    _run_and_report([load_experiment(spec)], quick, store_path, workers, scheduler, fmt, output)
 
 
 @cli.command()
