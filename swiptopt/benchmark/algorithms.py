@@ -392,7 +392,7 @@ _HOVER_POINTS = {
 }
 _OMPL_TOUR = {
     **_HOVER_POINTS,
-    "ompl_iterations": Setting(default=2000, kind="int", lo=1, hi=10**7, quick=200,
+    "ompl_iterations": Setting(default=300, kind="int", lo=1, hi=10**7, quick=100,
                                doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
 }
 
