@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 from planners.optimal import BUDGETS
+from planners.paths3d import CRASHING_PLANNERS, NO_PYTHON_OBJECTIVE_PLANNERS, PLANNERS
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size, limits, training_log_note
 from swiptopt.validation import Spec, check_keys, check_value
@@ -383,17 +384,31 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
 
 _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
 
-#: The hover points of the continuous-world planners (planners.continuous): both place them
-#: alike; the OMPL tour then plans its legs around obstacles and against the current.
+#: The settings of the continuous-world planners (planners.continuous; the defaults are
+#: theirs): both place the hover points and dwells alike; the OMPL tour then plans its legs
+#: around obstacles and against the current.
 _HOVER_POINTS = {
     "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes, hi_doc="n_nodes",
                  doc="hover points (default: every K up to k_max tried, the best tour kept)"),
-    "k_max": Setting(default=8, kind="int", lo=1, hi=100, doc="largest K tried"),
+    "k_max": Setting(default=8, kind="int", lo=1, hi=100, quick=4, doc="largest K tried"),
+    "clearance_m": Setting(default=1.0, lo=0, lo_open=True, hi=100, unit="m",
+                           doc="distance legs and hover points keep from obstacles and the seabed"),
+    "search_evaluations": Setting(default=120, kind="int", lo=0, hi=10**6, quick=20,
+                                  doc="the hover-point search's budget per point, evaluations"),
+    "prune": Setting(default=True, kind="bool", doc="drop stops that do not pay for their detour"),
+    "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
+                                doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
 }
 _OMPL_TOUR = {
     **_HOVER_POINTS,
     "ompl_iterations": Setting(default=300, kind="int", lo=1, hi=10**7, quick=100,
                                doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
+    "ompl_planner": Setting(default="InformedRRTstar", kind="str",
+                            choices=tuple(p for p in PLANNERS if p not in CRASHING_PLANNERS
+                                          and p not in NO_PYTHON_OBJECTIVE_PLANNERS),
+                            doc="the OMPL planner (one that takes the energy objective)"),
+    "ompl_legs": Setting(default="blocked", kind="str", choices=("blocked", "all"),
+                         doc="'blocked': OMPL only for legs whose straight segment is not free; 'all': every leg"),
 }
 
 ALGORITHMS: dict[str, Algorithm] = {

@@ -222,3 +222,15 @@ def test_compare_quick_harbour_prints_the_same_tables_with_one_worker_or_two(tmp
     for label in ("OMPL tour", "straight line", "SAC", "PPO", "random"):
         assert f"| {label} |" in first
     assert first.count("×") == 4 * 5  # the paired table: four algorithms against the straight line
+
+
+def test_the_continuous_planners_settings_are_theirs():
+    import inspect
+
+    continuous = pytest.importorskip("planners.continuous")
+    for name, cls in (("ompl_tour", continuous.OmplTourPlanner), ("straight_line", continuous.StraightLinePlanner)):
+        parameters = inspect.signature(cls.__init__).parameters
+        schema = ALGORITHMS[name].settings
+        assert set(schema) == set(parameters) - {"self", "seed"}
+        assert {key: spec.default for key, spec in schema.items()} == {key: parameters[key].default for key in schema}
+    assert ALGORITHMS["ompl_tour"].settings["ompl_legs"].choices == continuous.OMPL_LEGS
