@@ -728,11 +728,16 @@ def task_extra(name: str, policy: Any, env: Any) -> dict[str, Any]:
 
 def build_policy(name: str, env: Any, settings: dict[str, Any], seed: int, context: BuildContext | None = None) -> Any:
     """The trained or planning policy of algorithm ``name`` for ``env`` (``context``:
-    what the task knows besides; by default the environment's scenario and nothing else)."""
+    what the task knows besides; by default the environment's scenario and world, and
+    nothing else). An algorithm that does not run in the env's world is a ConfigError."""
+    from swiptopt.env_continuous import AuvSwiptContinuousEnv
+
     algorithm = get_algorithm(name)
     assert algorithm.build is not None
     if context is None:
-        context = BuildContext(scenario=env.unwrapped.scenario)
+        world = CONTINUOUS if isinstance(env.unwrapped, AuvSwiptContinuousEnv) else GRID
+        context = BuildContext(scenario=env.unwrapped.scenario, world=world)
+    check_world_of(name, context.world)
     return algorithm.build(env, resolve_settings(name, settings), seed, context)
 
 

@@ -234,3 +234,22 @@ def test_the_continuous_planners_settings_are_theirs():
         assert set(schema) == set(parameters) - {"self", "seed"}
         assert {key: spec.default for key, spec in schema.items()} == {key: parameters[key].default for key in schema}
     assert ALGORITHMS["ompl_tour"].settings["ompl_legs"].choices == continuous.OMPL_LEGS
+
+
+def test_build_policy_reads_the_world_from_the_env():
+    import numpy as np
+
+    from swiptopt.benchmark.algorithms import build_policy
+    from swiptopt.env import AuvSwiptEnv
+    from swiptopt.env_continuous import AuvSwiptContinuousEnv
+
+    env = AuvSwiptContinuousEnv(preset="harbour", n_nodes=4)
+    policy = build_policy("random", env, {}, seed=7)
+    actions = np.array([policy.predict(None) for _ in range(500)])
+    assert actions.shape == (500, 3) and actions.dtype == np.float32
+    assert np.all(actions >= -1) and np.all(actions <= 1) and np.all(np.ptp(actions, axis=0) > 1.9)
+    again = build_policy("random", env, {}, seed=7)
+    np.testing.assert_array_equal(actions, [again.predict(None) for _ in range(500)])  # seeded
+    assert isinstance(build_policy("random", AuvSwiptEnv(preset="tiny"), {}, seed=7).predict(0), int)
+    with pytest.raises(ConfigError, match="Q-learning runs in the grid world only"):
+        build_policy("q_learning", env, {}, seed=0)
