@@ -5,9 +5,9 @@ Stable-Baselines3 through :func:`rl.deep.train_deep` (one torch thread, on the C
 settings the ``harbour`` suite gives each algorithm (:mod:`swiptopt.benchmark.algorithms`),
 on the harbour preset in the continuous world (trained across the suite's layouts) and on
 Pendulum-v1 (a box action too), in this one process, interleaved so that both see the same
-machine load. SAC is measured while it learns (``learning_starts = 0``: every step costs a
-gradient step), which is what its budget pays for beyond its first ``learning_starts``
-steps. Each figure is the median over repeats of ``timesteps / training time``; the ratio
+machine load. SAC is measured while it learns (``learning_starts = 0``: a gradient step every
+``train_freq`` steps from the first), which is what its budget pays for beyond its first
+``learning_starts`` steps. Each figure is the median over repeats of ``timesteps / training time``; the ratio
 (ours / Pendulum) says how much of a run's cost is the environment. Usage:
 
     python benchmarks/continuous_rl_speed.py [--timesteps 4096] [--repeats 3]
@@ -81,7 +81,7 @@ def main() -> None:
     med = {key: statistics.median(values) for key, values in rates.items()}
     ours, reference = envs
     print(f"SB3 training steps per second (the harbour suite's settings, one torch thread), median of "
-          f"{args.repeats} x {args.timesteps} steps; SAC while learning (a gradient step per step)")
+          f"{args.repeats} x {args.timesteps} steps; SAC learning from its first step")
     print(describe())
     for algorithm in ALGORITHMS:
         a, b = med[algorithm, ours], med[algorithm, reference]
