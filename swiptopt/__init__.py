@@ -2,7 +2,8 @@
 underwater sensor network with acoustic SWIPT.
 
 The model modules need only numpy; importing the package also registers the Gymnasium
-environment ``swiptopt/AuvSwipt-v1`` (v0 is gone: see the env's Version History). Solvers,
+environments ``swiptopt/AuvSwipt-v1`` (the paper's grid; v0 is gone: see the env's Version
+History) and ``swiptopt/AuvSwiptContinuous-v0`` (the continuous world, SPEC 8). Solvers,
 plotting, numba and clusters load where they are used, so ``import swiptopt`` stays fast
 and quiet.
 """
@@ -20,8 +21,12 @@ if ENV_ID not in registry:
     # no max_episode_steps here: the scenario sets the episode length, and the env reports it
     # in its spec (AuvSwiptEnv.spec)
     register(id=ENV_ID, entry_point="swiptopt.env:AuvSwiptEnv")
+CONTINUOUS_ENV_ID = "swiptopt/AuvSwiptContinuous-v0"
+if CONTINUOUS_ENV_ID not in registry:
+    register(id=CONTINUOUS_ENV_ID, entry_point="swiptopt.env_continuous:AuvSwiptContinuousEnv")
 
 __all__ = [
+    "CONTINUOUS_ENV_ID",
     "ENV_ID",
     "PRESETS",
     "Box",

@@ -96,7 +96,67 @@ def check_layout_seeds(value: Any) -> Sequence[int] | None:
     return np.array([_layout_seed(v, "layout_seeds[...]") for v in value], dtype=np.int64)
 
 
-class AuvSwiptEnv(gym.Env):
+class LayoutEnv(gym.Env):
+    """What both worlds' environments share: the registration spec with the scenario's
+    episode length, and a layout per episode (``layout_seeds``, ``reset(options=...)``) with
+    the last :data:`LAYOUT_CACHE_SIZE` layouts kept built. A subclass sets ``scenario``,
+    ``_scenario0``, ``layout_seeds`` and ``_layouts`` (layout seed -> (scenario, built)) and
+    defines :meth:`_build_layout` and :meth:`_set_layout`."""
+
+    _spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registration spec (set by ``gymnasium.make``), its ``max_episode_steps`` the
+        scenario's ``episode_steps``."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        # gymnasium.make sets the spec after construction, without an episode length: the
+        # scenario knows it (the env truncates itself, so no TimeLimit is needed)
+        if value is not None and value.max_episode_steps is None:
+            value = dataclasses.replace(value, max_episode_steps=self.scenario.episode_steps)
+        self._spec = value
+
+    def _episode_layout_seed(self, options: Mapping[str, Any] | None) -> int:
+        if options:
+            if not isinstance(options, Mapping):
+                raise ConfigError(f"reset options must be a dict, got {options!r}", "options")
+            unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+            if unknown:
+                raise ConfigError(
+                    f"unknown reset option {unknown[0]!r}: allowed options are {list(RESET_OPTIONS)}", "options"
+                )
+            if "layout_seed" in options:
+                return _layout_seed(options["layout_seed"], "options['layout_seed']")
+        if self.layout_seeds is not None:
+            return int(self.layout_seeds[int(self.np_random.integers(len(self.layout_seeds)))])
+        return self._scenario0.layout_seed
+
+    def _use_layout(self, layout_seed: int) -> None:
+        """Switch to another layout of the same scenario, rebuilding only what it changes
+        (once for each of the last :data:`LAYOUT_CACHE_SIZE` layouts used)."""
+        built = self._layouts.pop(layout_seed, None)
+        if built is None:
+            scenario = self._scenario0.replace(layout_seed=layout_seed)
+            built = (scenario, self._build_layout(scenario))
+        self._layouts[layout_seed] = built  # the most recently used last
+        if len(self._layouts) > LAYOUT_CACHE_SIZE:
+            self._layouts.popitem(last=False)
+        self.scenario = built[0]
+        self._set_layout(built[1])
+
+    def _build_layout(self, scenario: Scenario) -> Any:
+        """The layout-dependent arrays for ``scenario`` (another layout of ``_scenario0``)."""
+        raise NotImplementedError
+
+    def _set_layout(self, built: Any) -> None:
+        """Start using the arrays :meth:`_build_layout` made."""
+        raise NotImplementedError
+
+
+class AuvSwiptEnv(LayoutEnv):
     """
     ## Description
 
@@ -182,7 +242,6 @@ class AuvSwiptEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
-    _spec: EnvSpec | None = None
 
     def __init__(
         self,
@@ -250,50 +309,13 @@ class AuvSwiptEnv(gym.Env):
             self._obs,
         )
 
-    # ----------------------------------------------------------------- spec
-
-    @property
-    def spec(self) -> EnvSpec | None:
-        """The registration spec (set by ``gymnasium.make``), its ``max_episode_steps`` the
-        scenario's ``episode_steps``."""
-        return self._spec
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        # gymnasium.make sets the spec after construction, without an episode length: the
-        # scenario knows it (the env truncates itself, so no TimeLimit is needed)
-        if value is not None and value.max_episode_steps is None:
-            value = dataclasses.replace(value, max_episode_steps=self.scenario.episode_steps)
-        self._spec = value
-
     # ----------------------------------------------------------------- layouts
 
-    def _episode_layout_seed(self, options: Mapping[str, Any] | None) -> int:
-        if options:
-            if not isinstance(options, Mapping):
-                raise ConfigError(f"reset options must be a dict, got {options!r}", "options")
-            unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
-            if unknown:
-                raise ConfigError(
-                    f"unknown reset option {unknown[0]!r}: allowed options are {list(RESET_OPTIONS)}", "options"
-                )
-            if "layout_seed" in options:
-                return _layout_seed(options["layout_seed"], "options['layout_seed']")
-        if self.layout_seeds is not None:
-            return int(self.layout_seeds[int(self.np_random.integers(len(self.layout_seeds)))])
-        return self._scenario0.layout_seed
+    def _build_layout(self, scenario: Scenario) -> K.Tables:
+        return K.with_layout(self.tables, scenario)
 
-    def _use_layout(self, layout_seed: int) -> None:
-        """Switch to another layout of the same scenario, rebuilding only what it changes
-        (once for each of the last :data:`LAYOUT_CACHE_SIZE` layouts used)."""
-        built = self._layouts.pop(layout_seed, None)
-        if built is None:
-            scenario = self._scenario0.replace(layout_seed=layout_seed)
-            built = (scenario, K.with_layout(self.tables, scenario))
-        self._layouts[layout_seed] = built  # the most recently used last
-        if len(self._layouts) > LAYOUT_CACHE_SIZE:
-            self._layouts.popitem(last=False)
-        self.scenario, self.tables = built
+    def _set_layout(self, tables: K.Tables) -> None:
+        self.tables = tables
         if self._vector:
             self._set_layout_features()
         if self.state is not None:

@@ -140,6 +140,25 @@ def build_tables(scenario: Scenario) -> Tables:
     prop_w[:, HOVER] += scenario.station_keeping_power_w
     propulsion_j = prop_w * dt
 
+    params = scalar_params(scenario)
+
+    return Tables(
+        next_cell=next_cell,
+        moved=moved,
+        propulsion_j=propulsion_j,
+        start_cell=scenario.start_cell_index,
+        n_cells=n_cells,
+        n_nodes=scenario.n_nodes,
+        normal_rows=int(params[P_NORMAL_ROWS]),
+        **layout_tables(scenario, params),
+    )
+
+
+def scalar_params(scenario: Scenario) -> np.ndarray:
+    """The scenario's scalar parameters (``P_*``) that do not depend on the layout; the
+    layout's entries (targets, whether steps draw failures) are set by :func:`layout_tables`.
+    Both worlds read this one vector."""
+    dt = scenario.step_duration_s
     refs = reward_references(scenario)
     power = auv_power(scenario)
     params = np.zeros(N_PARAMS)
@@ -172,17 +191,7 @@ def build_tables(scenario: Scenario) -> Tables:
     params[P_NODE_TX_W] = scenario.node_transmit_power_w
     params[P_NODE_CIRCUIT_W] = scenario.node_circuit_power_w
     params[P_PACKET_BITS] = scenario.packet_bits
-
-    return Tables(
-        next_cell=next_cell,
-        moved=moved,
-        propulsion_j=propulsion_j,
-        start_cell=scenario.start_cell_index,
-        n_cells=n_cells,
-        n_nodes=scenario.n_nodes,
-        normal_rows=int(params[P_NORMAL_ROWS]),
-        **layout_tables(scenario, params),
-    )
+    return params
 
 
 #: The fields of :class:`Tables` that depend on the node layout (positions, charges, failure
@@ -403,20 +412,33 @@ def vector_observation(  # type: ignore[no-untyped-def]
     The AUV's cell centre over the volume's extent (``cells_norm`` (n_cells, 3)), the
     fraction of the episode left, then per node: its position minus the AUV's over the
     extent (``nodes_norm`` (n_nodes, 3)), the fraction of its data left, its state of charge
-    and 1.0 if covered from ``cell``. Whole-array ufuncs writing straight into ``out`` (no
-    temporaries), so that numpy runs it fast in Python and numba compiles it unchanged.
+    and 1.0 if covered from ``cell`` (:func:`observation_at`, which the continuous world
+    calls with the AUV's actual position).
     """
+    observation_at(
+        cells_norm[cell], t, cov_ptr[cell], cov_ptr[cell + 1], cov_node, data_left, energy, data0, capacity, params,
+        nodes_norm, out,
+    )
+
+
+def observation_at(  # type: ignore[no-untyped-def]
+    auv_norm, t, start, stop, cov_node, data_left, energy, data0, capacity, params, nodes_norm, out
+):
+    """The vector observation of an AUV at ``auv_norm`` (its position over the extent, (3,))
+    covering the nodes ``cov_node[start:stop]``, written into ``out``. Whole-array ufuncs
+    writing straight into ``out`` (no temporaries), so that numpy runs it fast in Python and
+    numba compiles it unchanged."""
     n = data_left.shape[0]
     for axis in range(3):
-        out[axis] = cells_norm[cell, axis]
+        out[axis] = auv_norm[axis]
     out[3] = 1.0 - t / params[P_STEPS]
     per_node = out[4:].reshape((n, VECTOR_NODE_FEATURES))
     for axis in range(3):
-        np.subtract(nodes_norm[:, axis], cells_norm[cell, axis], per_node[:, axis])
+        np.subtract(nodes_norm[:, axis], auv_norm[axis], per_node[:, axis])
     np.divide(data_left, data0, per_node[:, 3])
     np.divide(energy, capacity, per_node[:, 4])
     per_node[:, 5] = 0.0
-    for p in range(cov_ptr[cell], cov_ptr[cell + 1]):
+    for p in range(start, stop):
         per_node[cov_node[p], 5] = 1.0
 
 
@@ -499,14 +521,47 @@ def step(  # type: ignore[no-untyped-def]
     The reward's movement part counts propulsion and hotel energy; the projector's energy
     (on in any step with a covered node) is counted in the totals, not the reward.
     """
-    dt = params[P_DT]
-    gamma = params[P_GAMMA]
     cell = where[W_CELL]
     new_cell = next_cell[cell, action]
-    move_j = propulsion_j[cell, action] + params[P_HOTEL_J]
-    acc[A_PROPULSION_J] += propulsion_j[cell, action]
-    acc[A_HOTEL_J] += params[P_HOTEL_J]
     where[W_CELL] = new_cell
+    return serve(
+        propulsion_j[cell, action], cov_ptr[new_cell], cov_ptr[new_cell + 1], uniforms, normals, cov_node, cov_snr,
+        cov_pav, capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+    )
+
+
+def serve(  # type: ignore[no-untyped-def]
+    propulsion_j,
+    start,
+    stop,
+    uniforms,
+    normals,
+    cov_node,
+    cov_snr,
+    cov_pav,
+    capacity,
+    fail_prob,
+    params,
+    where,
+    data_left,
+    energy,
+    delivered,
+    collected,
+    acc,
+    parts,
+):
+    """The rest of a step once the AUV has moved, whichever world it moves in: the
+    propulsion energy ``propulsion_j`` of the move (plus the hotel load) is counted, the
+    covered pairs ``cov_node[start:stop]`` (with their mean SNR and available power) are
+    served with the step's draws, then idle drain, reward parts, t += 1 and the end of the
+    episode, as :func:`step` documents. The grid's :func:`step` and the continuous world's
+    step (:mod:`swiptopt.continuous`) both end here, so the two worlds share every rule
+    after the motion."""
+    dt = params[P_DT]
+    gamma = params[P_GAMMA]
+    move_j = propulsion_j + params[P_HOTEL_J]
+    acc[A_PROPULSION_J] += propulsion_j
+    acc[A_HOTEL_J] += params[P_HOTEL_J]
 
     channel = params[P_CHANNEL]
     alpha = params[P_ALPHA]
@@ -515,8 +570,6 @@ def step(  # type: ignore[no-untyped-def]
     rows = int(params[P_NORMAL_ROWS])
     bits_total = 0.0
     joules_total = 0.0
-    start = cov_ptr[new_cell]
-    stop = cov_ptr[new_cell + 1]
     if stop > start:
         acc[A_PROJECTOR_J] += params[P_PROJECTOR_J]
         acc[A_PROJECTOR_STEPS] += 1.0
@@ -646,8 +699,10 @@ _KERNEL_FUNCTIONS = (
     "tabular_observation",
     "needs_refill",
     "reset_state",
+    "serve",
     "step",
     "step_tabular",
+    "observation_at",
     "vector_observation",
     "step_vector",
 )
