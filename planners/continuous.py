@@ -5,15 +5,15 @@ a tour over them, dwells from the convex program, and an executor of velocity ac
 :class:`swiptopt.env_continuous.AuvSwiptContinuousEnv` (``begin_episode`` + ``predict``), so
 :func:`swiptopt.evaluate` scores them like any agent. They share every step but the legs:
 
-1. **Hover points.** The nodes some position can cover (a point above the node, clear of the
-   obstacles) are grouped by k-means (scikit-learn, seeded as
+1. **Hover points.** The nodes some position can cover
+   (:func:`swiptopt.continuous.coverable_nodes`) are grouped by k-means (scikit-learn, seeded as
    :func:`planners.clustering.kmeans_hover_points` seeds it). Each group's hover point starts
    at the best of a few points above the group (its centroid and its members, at a few
    depths) and is then moved by a deterministic compass search (the six axis moves, the step
    halved when none improves, a fixed number of evaluations) to maximise what one step of
    hovering there earns from the group: the simulator's per-step reward, priced by
-   :func:`planners.service.step_model` (the kernel's own rate and harvest functions, expected
-   over the fading and the link failures) on the SNR and available power that
+   :func:`planners.service.step_model` (the kernel's own rate and harvest functions, on the
+   mean channel, link failures counted) on the SNR and available power that
    :func:`swiptopt.continuous.coverage_at` gives there, less the cost of holding station.
    Every hover point keeps ``clearance_m`` from the obstacles, the seabed and the volume's faces.
 2. **Legs** between every pair of stops (the start and the hover points). OMPL tour: the
@@ -88,7 +88,7 @@ ARRIVAL_TOLERANCE_M = 1e-3
 #: A commanded move shorter than this, m, is no progress (the env stopped it at contact).
 NO_PROGRESS_M = 1e-6
 
-#: Vertical offsets above a node tried to see whether any position covers it, m.
+#: Heights above a node tried as hover points when no start above its group keeps the clearance, m.
 COVER_PROBE_OFFSETS_M = (2.0, 5.0, 10.0, 20.0)
 
 #: Depth levels tried above each starting (x, y) of a hover point's search.
@@ -152,13 +152,15 @@ class ContinuousPlan:
 # --------------------------------------------------------------------- the step model
 
 
-def point_model(world: Any, points_m: np.ndarray) -> Any:
+def point_model(world: Any, points_m: np.ndarray, *, mean_channel: bool = False) -> Any:
     """The per-step model (:class:`planners.service.StepModel`) with the given points as its
     "cells": a step ending at point c serves the nodes :func:`swiptopt.continuous.coverage_at`
     covers from it, priced by the kernel's functions; staying there costs holding station.
 
     ``points_m``: (m, 3). Only the service amounts and the stay costs are meaningful (there
-    are no moves between the points).
+    are no moves between the points). ``mean_channel``: price the mean channel (no fading;
+    link failures still scale the data) instead of the expectation over the fading, which
+    costs a quadrature per call: the hover-point search ranks many points with it.
     """
     from planners.service import step_model
     from swiptopt.continuous import coverage_at, propulsion_energy_j
@@ -176,6 +178,10 @@ def point_model(world: Any, points_m: np.ndarray) -> Any:
         hover_j[c] = propulsion_energy_j(world, p, np.zeros(3))
     cov_ptr = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(counts, out=cov_ptr[1:])
+    params = np.asarray(world.params, dtype=float)
+    if mean_channel:
+        params = params.copy()
+        params[K.P_CHANNEL] = K.CHANNEL_CODES["none"]
     tables = K.Tables(
         next_cell=np.repeat(np.arange(m, dtype=np.int64)[:, None], K.N_ACTIONS, axis=1),
         moved=np.zeros((m, K.N_ACTIONS), dtype=bool),
@@ -188,7 +194,7 @@ def point_model(world: Any, points_m: np.ndarray) -> Any:
         energy0=np.asarray(world.energy0, dtype=float),
         capacity=np.asarray(world.capacity, dtype=float),
         fail_prob=np.asarray(world.fail_prob, dtype=float),
-        params=np.asarray(world.params, dtype=float),
+        params=params,
         start_cell=0,
         n_cells=m,
         n_nodes=int(world.n_nodes),
@@ -200,8 +206,9 @@ def point_model(world: Any, points_m: np.ndarray) -> Any:
 
 def hover_values(world: Any, points_m: np.ndarray, group: np.ndarray) -> np.ndarray:
     """(m,) what one step of hovering at each point earns from the nodes of ``group`` (fresh:
-    all their data and storage room left), less the cost of holding station there."""
-    model = point_model(world, points_m)
+    all their data and storage room left), less the cost of holding station there, on the
+    mean channel (link failures counted, fading not: see :func:`point_model`)."""
+    model = point_model(world, points_m, mean_channel=True)
     member = np.zeros(model.n_nodes)
     member[np.asarray(group, dtype=np.int64)] = 1.0
     per_pair = (model.data_weight * model.bits + model.energy_weight * model.joules) * member[model.cov_node]
@@ -368,7 +375,9 @@ class _ContinuousTourPlanner:
         """Plan the tour for ``world`` (:func:`swiptopt.continuous.build_world` of ``scenario``)."""
         self._pair_cache: dict[tuple[bytes, bytes], tuple[np.ndarray, str]] = {}
         self._ompl_statuses: dict[str, int] = {}
-        coverable = self._coverable_nodes(world, scenario)
+        from swiptopt.continuous import coverable_nodes
+
+        coverable = np.flatnonzero(coverable_nodes(scenario))
         if coverable.size == 0:
             return self._empty_plan(world, "no coverable nodes")
         from sklearn.cluster import KMeans
@@ -394,20 +403,6 @@ class _ContinuousTourPlanner:
             0, np.zeros((0, 3)), (), (), np.zeros(0, dtype=np.int64), None, "no_coverage",
             trajectory_return(world, positions, actions), positions, actions, status,
         )
-
-    def _coverable_nodes(self, world: Any, scenario: Any) -> np.ndarray:
-        """Nodes covered from some point above them (:data:`COVER_PROBE_OFFSETS_M`) that keeps
-        the clearance."""
-        from planners.paths3d import clearance_of_m
-        from swiptopt.continuous import coverage_at
-
-        out = []
-        for i, node in enumerate(world.nodes_m):
-            probes = np.array([[node[0], node[1], node[2] - d] for d in COVER_PROBE_OFFSETS_M])
-            probes = probes[clearance_of_m(probes, scenario) >= self.clearance_m]
-            if any(i in np.asarray(coverage_at(world, p)[0]) for p in probes):
-                out.append(i)
-        return np.asarray(out, dtype=np.int64)
 
     def _hover_point(self, world: Any, scenario: Any, group: np.ndarray) -> np.ndarray:
         """The group's hover point: the best start above it, then the compass search."""
@@ -584,7 +579,8 @@ class _ContinuousTourPlanner:
         positions[0] = world.start_m
         for t in range(steps):
             actions[t] = follower.action(positions[t])
-            positions[t + 1] = positions[t] + velocity_of(actions[t], world.speed_mps) * world.step_duration_s
+            # the env's arithmetic: the unit command times the step's reach
+            positions[t + 1] = positions[t] + velocity_of(actions[t], 1.0) * world.max_step_m
         return positions, actions
 
 
