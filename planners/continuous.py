@@ -88,8 +88,9 @@ ARRIVAL_TOLERANCE_M = 1e-3
 #: A commanded move shorter than this, m, is no progress (the env stopped it at contact).
 NO_PROGRESS_M = 1e-6
 
-#: Heights above a node tried as hover points when no start above its group keeps the clearance, m.
-COVER_PROBE_OFFSETS_M = (2.0, 5.0, 10.0, 20.0)
+#: When no start above a group keeps the clearance, its search starts from this many of the
+#: free cell centres nearest the group's centroid.
+FALLBACK_STARTS = 8
 
 #: Depth levels tried above each starting (x, y) of a hover point's search.
 START_DEPTH_LEVELS = 4
@@ -414,9 +415,14 @@ class _ContinuousTourPlanner:
         depths = np.linspace(self.clearance_m, max(self.clearance_m, top - 1.0), START_DEPTH_LEVELS)
         starts = np.array([[x, y, z] for x, y in xy for z in depths])
         starts = starts[clearance_of_m(starts, scenario) >= self.clearance_m]
-        if len(starts) == 0:  # every start is too near something: the members' own probes
-            starts = np.array([[x, y, max(self.clearance_m, z - d)] for x, y, z in members for d in COVER_PROBE_OFFSETS_M])
-            starts = starts[clearance_of_m(starts, scenario) >= self.clearance_m]
+        if len(starts) == 0:  # every start is too near something: the free cell centres nearest the group
+            centres = scenario.cell_centers_m
+            centres = centres[clearance_of_m(centres, scenario) >= self.clearance_m]
+            if len(centres) == 0:
+                raise ConfigError(f"no point of the volume keeps clearance_m = {self.clearance_m:g} m from "
+                                  "the obstacles, the seabed and the faces", "clearance_m")
+            near = np.argsort(np.linalg.norm(centres - members.mean(axis=0), axis=1), kind="stable")
+            starts = centres[near[:FALLBACK_STARTS]]
         values = hover_values(world, starts, group)
         here = starts[int(np.argmax(values))]
         value = float(values.max())
