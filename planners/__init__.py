@@ -14,6 +14,9 @@ Everything a user needs is importable from here::
 - planners that run in the environment: :class:`KMeansTspPlanner`,
   :class:`LawnmowerPlanner`, :class:`GreedyPlanner`, :class:`RateGreedyPlanner`,
   :class:`RewardKMeansTspPlanner` (k-means + TSP with its choices scored by the reward);
+- in the continuous world (``swiptopt/AuvSwiptContinuous-v0``): :class:`OmplTourPlanner`
+  (hover points anywhere, a tour over OMPL energy paths, convex dwells) and
+  :class:`StraightLinePlanner` (the same with straight legs that ignore obstacles and current);
 - the optimum as the reference: :func:`solve_optimum` (the episode as a mixed-integer
   program, HiGHS: best walk, proven bound, gap) and its policy :class:`MilpPlanner`; the
   per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`.
@@ -24,9 +27,10 @@ so ``import planners`` stays light; a test checks that it imports none of them.
 
 from planners.bounds import ExactOptimum, UpperBound, exact_optimum, exact_state_bound, upper_bound
 from planners.clustering import HoverPoints, kmeans_hover_points
+from planners.continuous import ContinuousPlan, OmplTourPlanner, StraightLinePlanner
 from planners.grid import bfs_distances, distance_matrix, path_actions
 from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, solve_optimum
-from planners.paths3d import PathResult, available_planners, path_energy_j, plan_path_3d
+from planners.paths3d import PathResult, available_planners, path_energy_j, plan_path_3d, segments_free
 from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner, Plan, Stop
 from planners.power_split import (
     DwellSplitProblem,
@@ -42,6 +46,7 @@ from planners.walk_search import polish_walk
 
 __all__ = [
     "BUDGETS",
+    "ContinuousPlan",
     "DwellSplitProblem",
     "ExactOptimum",
     "GreedyPlanner",
@@ -50,6 +55,7 @@ __all__ = [
     "LawnmowerPlanner",
     "MilpBudget",
     "MilpPlanner",
+    "OmplTourPlanner",
     "OptimumResult",
     "PathResult",
     "Plan",
@@ -58,6 +64,7 @@ __all__ = [
     "RewardKMeansTspPlanner",
     "StepModel",
     "Stop",
+    "StraightLinePlanner",
     "TspResult",
     "UpperBound",
     "available_planners",
@@ -74,6 +81,7 @@ __all__ = [
     "plan_path_3d",
     "polish_walk",
     "rate_greedy_actions",
+    "segments_free",
     "solve_optimum",
     "solve_tsp",
     "step_model",

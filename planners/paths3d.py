@@ -87,6 +87,9 @@ MIN_SPACING_SHARE = 0.01
 than half of it is refused."""
 SIMPLIFY_TIME_SHARE = 0.5
 """Simplification may take at most this share of ``time_limit_s`` on top of the solve."""
+SIMPLIFY_ITERATION_SHARE = 0.01
+"""With an iteration budget, simplification may run this share of ``iterations`` rounds (each
+round tries many shortcuts: a share of the planner's count of single iterations is plenty)."""
 
 # 3-point Gauss-Legendre on [0, 1]: exact for polynomials up to degree 5 and for a uniform
 # current; the propulsion power along a segment in a depth-linear current is smooth.
@@ -463,6 +466,47 @@ def _check_spacing_m(world: _World, ends: dict[str, tuple[float, float, float]],
     return spacing
 
 
+def clearance_of_m(points_m: Any, scenario: Scenario, *, faces: bool = True) -> np.ndarray:
+    """A lower bound on the distance from each point (..., 3) (x, y, depth) to the scenario's
+    obstacles, its seabed and (with ``faces``) the faces of its volume, m (<= 0: inside an
+    obstacle, below the seabed or outside the volume). Obstacles and seabed as
+    :func:`plan_path_3d` sees them."""
+    world, _ = _world_from(scenario, None)
+    p = np.asarray(points_m, dtype=float)
+    flat = p.reshape(-1, 3)
+    out = np.empty(len(flat))
+    for n, point in enumerate(flat):
+        xyz = (float(point[0]), float(point[1]), float(point[2]))
+        walls = min(min(v - lo, hi - v) for v, lo, hi in zip(xyz, world.low, world.high)) if faces else math.inf
+        out[n] = min([walls] + [d for d, _ in world.distances_m(xyz)])
+    return out.reshape(p.shape[:-1])
+
+
+def segments_free(starts_m: Any, ends_m: Any, scenario: Scenario, *, clearance_m: float = 0.0) -> np.ndarray:
+    """Whether each straight segment (starts (m, 3) to ends (m, 3), metres) keeps at least
+    ``clearance_m`` from every obstacle and the seabed and stays in the volume, (m,) bool.
+
+    Checked as :func:`plan_path_3d` checks a motion (module docstring): states at most ``g``
+    apart, tested against the obstacles grown by ``clearance_m + g / 2``, so no point between
+    two tested states is missed, however thin the obstacle (``g`` is the planner's default
+    spacing for the scenario). Both ends inside the volume keep the whole segment in it.
+    """
+    clearance_m = _positive("clearance_m", clearance_m, allow_zero=True)
+    world, _ = _world_from(scenario, None)
+    a = np.asarray(starts_m, dtype=float).reshape(-1, 3)
+    b = np.asarray(ends_m, dtype=float).reshape(-1, 3)
+    spacing = min(CHECK_SPACING_FRACTION * world.diagonal_m, SMALLEST_OBSTACLE_SHARE * world.smallest_obstacle_m())
+    free = world.free_fn(clearance_m + spacing / 2.0)
+    low, high = np.asarray(world.low), np.asarray(world.high)
+    out = np.zeros(len(a), dtype=bool)
+    for n, (p, q) in enumerate(zip(a, b)):
+        if not (np.all(p >= low) and np.all(p <= high) and np.all(q >= low) and np.all(q <= high)):
+            continue
+        samples = max(1, math.ceil(float(np.linalg.norm(q - p)) / spacing))
+        out[n] = all(free(*(p + (q - p) * (i / samples))) for i in range(samples + 1))
+    return out
+
+
 # ------------------------------------------------------------------------- planning
 
 _process_seed: int | None = None
@@ -534,6 +578,35 @@ def _choose_planner(planner: str | None, objective: str) -> str:
     return name
 
 
+def _checked_iterations(iterations: Any) -> int | None:
+    if iterations is None:
+        return None
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= iterations < 2**31:
+        raise ConfigError(f"iterations = {iterations!r} must be an integer in [1, 2**31) (or None for the time limit)",
+                          "iterations")
+    return int(iterations)
+
+
+def _counting_condition(budget: int) -> Any:
+    """An OMPL termination condition that becomes true on its ``budget + 1``-th evaluation.
+
+    OMPL's C++ ``IterationTerminationCondition`` is not in the Python bindings; a plain
+    ``PlannerTerminationCondition`` over a counting callable is the same thing. It is built
+    without a period, so OMPL evaluates it in the planner's thread at each check (a period
+    would evaluate it from a timer thread, on the wall clock).
+    """
+    from ompl import base as ob
+
+    calls = 0
+
+    def spent() -> bool:
+        nonlocal calls
+        calls += 1
+        return calls > budget
+
+    return ob.PlannerTerminationCondition(spent)
+
+
 def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
     number = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
     ok = number and math.isfinite(value)
@@ -555,6 +628,7 @@ def plan_path_3d(
     bounds: tuple[Sequence[float], Sequence[float]] | None = None,
     clearance_m: float = 0.0,
     simplify: bool = True,
+    iterations: int | None = None,
 ) -> PathResult:
     """Plan a collision-free 3D path from ``start`` to ``goal`` with OMPL.
 
@@ -597,12 +671,21 @@ def plan_path_3d(
         clearance_m: keep at least this distance from every obstacle, m.
         simplify: shortcut and smooth the path with OMPL's PathSimplifier (objective-aware);
             the result is kept only if it is valid and no worse under the objective.
+        iterations: a deterministic budget instead of the wall clock: OMPL's solve stops
+            after this many evaluations of its termination condition (the tree planners
+            evaluate it once per iteration: one sample, extension and rewiring), and the
+            simplification after ``SIMPLIFY_ITERATION_SHARE`` of as many (at least one round).
+            ``time_limit_s`` is then not used. In one process, a seed and the same sequence of
+            calls give the same paths on any machine and under any load (no thread is
+            involved: the condition is a counting Python callable evaluated by the planner's
+            own loop). ``None``: the wall-clock limit.
 
     Returns a :class:`PathResult`; no path within the limit is a status, not an exception.
     Sets OMPL's log level to ``LOG_NONE`` (process-wide) so that nothing prints.
     """
     time_limit_s = _positive("time_limit_s", time_limit_s)
     clearance_m = _positive("clearance_m", clearance_m, allow_zero=True)
+    iterations = _checked_iterations(iterations)
     seed = _checked_seed(seed)
     name = _choose_planner(planner, objective)
     world, scenario = _world_from(scenario_or_obstacles, bounds)
@@ -653,14 +736,17 @@ def plan_path_3d(
     setup.setPlanner(getattr(og, name)(si))
 
     t0 = time.perf_counter()
-    outcome = setup.solve(time_limit_s)
+    outcome = setup.solve(time_limit_s if iterations is None else _counting_condition(iterations))
     solve_time_s = time.perf_counter() - t0
     path = _usable_path(setup, a)
     simplify_time_s = 0.0
     if path is not None and simplify:
         before = og.PathGeometric(path)
         t0 = time.perf_counter()
-        setup.simplifySolution(SIMPLIFY_TIME_SHARE * time_limit_s)
+        if iterations is None:
+            setup.simplifySolution(SIMPLIFY_TIME_SHARE * time_limit_s)
+        else:
+            setup.simplifySolution(_counting_condition(max(1, int(SIMPLIFY_ITERATION_SHARE * iterations))))
         simplify_time_s = time.perf_counter() - t0
         after = _usable_path(setup, a)
         if after is None or cost.isCostBetterThan(before.cost(cost), after.cost(cost)):

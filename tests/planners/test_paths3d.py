@@ -216,8 +216,9 @@ def test_energy_without_current_is_length_times_a_constant():
 
 def test_energy_objective_is_no_worse_than_the_shortest_path_under_a_strong_current():
     a, b = (10.0, 50.0, 25.0), (190.0, 50.0, 25.0)
-    shortest = plan_path_3d(a, b, CURRENT, objective="length", time_limit_s=1.0)
-    thrifty = plan_path_3d(a, b, CURRENT, objective="energy", time_limit_s=1.0)
+    # an iteration budget, not the wall clock: the same search however loaded the machine is
+    shortest = plan_path_3d(a, b, CURRENT, objective="length", time_limit_s=60.0, iterations=400)
+    thrifty = plan_path_3d(a, b, CURRENT, objective="energy", time_limit_s=60.0, iterations=400)
     assert shortest.exact and thrifty.exact
     assert thrifty.energy_j <= 1.02 * shortest.energy_j
     assert thrifty.length_m >= shortest.length_m * (1 - 0.03)
@@ -309,3 +310,65 @@ def test_the_harbour_case_that_crashed_ompl_runs_with_every_planner():
     assert out["None"] == ["InformedRRTstar", "exact"]
     assert "AORRTC" not in out and len(out) >= 10
     assert all(status in ("exact", "approximate", "timeout") for _, status in out.values())
+
+
+ITERATION_SCRIPT = textwrap.dedent(
+    """
+    import json
+    from planners.paths3d import plan_path_3d
+    from swiptopt.scenario import Scenario
+    harbour = Scenario.preset("harbour")
+    kw = dict(objective="energy", seed=3, iterations=150, clearance_m=1.0)
+    out = [plan_path_3d((30, 60, 20), (30, 140, 15), harbour, **kw).waypoints.tolist() for _ in range(2)]
+    out.append(plan_path_3d((30, 60, 20), (30, 140, 15), harbour, objective="energy", iterations=1).status)
+    print(json.dumps(out))
+    """
+)
+
+
+def test_an_iteration_budget_repeats_its_paths_in_fresh_processes():
+    """The counting termination condition: the same seed and calls give the same paths in
+    two processes (two calls: the stream continues, and still repeats); one iteration cannot
+    get round the pier."""
+    runs = [subprocess.run([sys.executable, "-c", ITERATION_SCRIPT], capture_output=True, text=True, check=True)
+            for _ in range(2)]
+    first, second = (json.loads(r.stdout) for r in runs)
+    assert first == second
+    harbour = Scenario.preset("harbour")
+    for path in first[:2]:
+        waypoints = np.asarray(path)
+        assert len(waypoints) >= 3  # the straight line crosses the pier
+        assert not harbour.is_blocked(dense_points(waypoints)).any()
+    assert first[2] == "timeout"
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, "100"])
+def test_a_bad_iteration_budget_is_refused(bad):
+    with pytest.raises(ConfigError) as info:
+        plan_path_3d(A, B, [BALL], bounds=CUBE, iterations=bad)
+    assert info.value.field == "iterations"
+
+
+def test_segments_free_agrees_with_dense_sampling_and_keeps_the_clearance():
+    harbour = Scenario.preset("harbour")
+    rng = np.random.default_rng(4)
+    starts = rng.uniform(0.0, 1.0, (300, 3)) * harbour.extent_m
+    ends = rng.uniform(0.0, 1.0, (300, 3)) * harbour.extent_m
+    free = paths3d.segments_free(starts, ends, harbour, clearance_m=1.0)
+    assert 20 < free.sum() < 280  # both outcomes occur
+    for p, q, ok in zip(starts, ends, free):
+        points = dense_points(np.stack([p, q]), spacing_m=0.1)
+        if ok:
+            assert paths3d.clearance_of_m(points[:: max(1, len(points) // 50)], harbour, faces=False).min() >= 1.0 - 1e-9
+        blocked = bool(harbour.is_blocked(points).any())
+        assert not (ok and blocked)
+    # a segment along the pier's face, 3 m off it, has less than 3 m of clearance
+    assert paths3d.segments_free([(10, 87, 10)], [(50, 87, 10)], harbour, clearance_m=2.0).tolist() == [True]
+    assert paths3d.segments_free([(10, 87, 10)], [(50, 87, 10)], harbour, clearance_m=3.0).tolist() == [False]
+
+
+def test_clearance_of_points_against_a_box_a_sphere_and_the_faces():
+    harbour = Scenario.preset("harbour")
+    # 5 m from the surface; 10 m east of the pier's end at mid-depth; inside the pier
+    got = paths3d.clearance_of_m([(105.0, 105.0, 5.0), (70.0, 100.0, 20.0), (30.0, 100.0, 20.0)], harbour)
+    assert got.tolist() == pytest.approx([5.0, 10.0, -10.0])
