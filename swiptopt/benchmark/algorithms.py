@@ -401,7 +401,7 @@ _HOVER_POINTS = {
 }
 _OMPL_TOUR = {
     **_HOVER_POINTS,
-    "ompl_iterations": Setting(default=300, kind="int", lo=1, hi=10**7, quick=100,
+    "ompl_iterations": Setting(default=150, kind="int", lo=1, hi=10**7, quick=50,
                                doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
     "ompl_planner": Setting(default="InformedRRTstar", kind="str",
                             choices=tuple(p for p in PLANNERS if p not in CRASHING_PLANNERS
