@@ -441,7 +441,7 @@ _COMPARE_DEEP = {
 }
 #: The harbour suite: the continuous world on the harbour preset (a pier, a moored hull, a
 #: wreck, a sloping seabed and a current), where straight lines are wrong.
-_HARBOUR_LAYOUTS = 5
+_HARBOUR_LAYOUTS = 8
 #: Deep RL in the harbour suite: one model per algorithm and training seed, trained across
 #: the suite's layouts, at budgets that keep `make compare` (both suites) within about ten
 #: minutes on two cores (benchmarks/continuous_rl_speed.py measures the rates). SAC's
