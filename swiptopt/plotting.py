@@ -19,14 +19,16 @@ def draw_world(scenario: Scenario, top: Any, side: Any, paths: Mapping[str, np.n
     from matplotlib.patches import Circle, Rectangle
 
     nodes = scenario.layout.positions_m
-    for ax, j, ylabel in ((top, 1, "y (m)"), (side, 2, "depth (m)")):
+    # the depth view projects every obstacle across the width: lighter, so that paths beside
+    # them (at other y) stay visible through them
+    for ax, j, ylabel, alpha in ((top, 1, "y (m)", 1.0), (side, 2, "depth (m)", 0.4)):
         for obstacle in scenario.obstacles:
             if isinstance(obstacle, Box):
                 lo, hi = obstacle.min_m, obstacle.max_m
-                ax.add_patch(Rectangle((lo[0], lo[j]), hi[0] - lo[0], hi[j] - lo[j], color="0.75", zorder=1))
+                ax.add_patch(Rectangle((lo[0], lo[j]), hi[0] - lo[0], hi[j] - lo[j], color="0.6", alpha=alpha, zorder=1))
             elif isinstance(obstacle, Sphere):
                 c = obstacle.center_m
-                ax.add_patch(Circle((c[0], c[j]), obstacle.radius_m, color="0.75", zorder=1))
+                ax.add_patch(Circle((c[0], c[j]), obstacle.radius_m, color="0.6", alpha=alpha, zorder=1))
         ax.scatter(nodes[:, 0], nodes[:, j], s=14, c="tab:blue", zorder=3, label="nodes")
         for k, (label, path) in enumerate(paths.items()):
             path = np.asarray(path, dtype=float).reshape(-1, 3)
@@ -43,4 +45,4 @@ def draw_world(scenario: Scenario, top: Any, side: Any, paths: Mapping[str, np.n
     mid_y = np.full_like(x, scenario.width_m / 2)
     side.fill_between(x, scenario.seabed_depth_m(x, mid_y), scenario.depth_m, color="tan", zorder=0)
     side.set_ylim(scenario.depth_m, 0)
-    side.set_title("depth view (seabed at mid-width)")
+    side.set_title("depth view (obstacles projected across y; seabed at mid-width)")
