@@ -134,6 +134,29 @@ class LayoutEnv(gym.Env):
             return int(self.layout_seeds[int(self.np_random.integers(len(self.layout_seeds)))])
         return self._scenario0.layout_seed
 
+    def _setup(
+        self, scenario: Scenario | None, preset: str, overrides: dict[str, Any], render_mode: str | None,
+        backend: str, layout_seeds: Sequence[int] | None,
+    ) -> str:
+        """Set ``scenario`` (a preset with field overrides, or the scenario with them),
+        ``render_mode`` and ``layout_seeds`` after checking them; returns the kernel backend
+        (``"auto"`` resolved)."""
+        if scenario is None:
+            scenario = Scenario.preset(preset, **overrides)
+        elif overrides:
+            scenario = scenario.replace(**overrides)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        self.layout_seeds = check_layout_seeds(layout_seeds)
+        self.scenario = scenario
+        self._scenario0 = scenario  # the layouts of other episodes are variations of it
+        self.render_mode = render_mode
+        if backend == "auto":
+            backend = "compiled" if numba_available() else "python"
+        return backend
+
     def _use_layout(self, layout_seed: int) -> None:
         """Switch to another layout of the same scenario, rebuilding only what it changes
         (once for each of the last :data:`LAYOUT_CACHE_SIZE` layouts used)."""
@@ -254,25 +277,13 @@ class AuvSwiptEnv(LayoutEnv):
         layout_seeds: Sequence[int] | None = None,
         **overrides: Any,
     ):
-        if scenario is None:
-            scenario = Scenario.preset(preset, **overrides)
-        elif overrides:
-            scenario = scenario.replace(**overrides)
         if observation not in OBSERVATIONS:
             raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        self.layout_seeds = check_layout_seeds(layout_seeds)
-        self.scenario = scenario
-        self._scenario0 = scenario  # the layouts of other episodes are variations of it
+        backend = self._setup(scenario, preset, overrides, render_mode, backend, layout_seeds)
+        scenario = self.scenario
         self.observation = observation
-        self.render_mode = render_mode
         self.tables = K.build_tables(scenario)
         self._layouts = OrderedDict([(scenario.layout_seed, (scenario, self.tables))])
-        if backend == "auto":
-            backend = "compiled" if numba_available() else "python"
         self.backend = backend
         if backend == "compiled":
             self._step_tabular = K.compiled("step_tabular")

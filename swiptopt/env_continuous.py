@@ -17,8 +17,7 @@ from gymnasium import spaces
 
 from swiptopt import continuous as C
 from swiptopt import kernel as K
-from swiptopt.env import BACKENDS, INFO_KEY, EpisodeMetrics, LayoutEnv, check_layout_seeds
-from swiptopt.jit import numba_available
+from swiptopt.env import INFO_KEY, EpisodeMetrics, LayoutEnv
 from swiptopt.metrics import episode_metrics
 from swiptopt.scenario import Scenario
 
@@ -89,23 +88,10 @@ class AuvSwiptContinuousEnv(LayoutEnv):
         layout_seeds: Sequence[int] | None = None,
         **overrides: Any,
     ):
-        if scenario is None:
-            scenario = Scenario.preset(preset, **overrides)
-        elif overrides:
-            scenario = scenario.replace(**overrides)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-        self.layout_seeds = check_layout_seeds(layout_seeds)
-        self.scenario = scenario
-        self._scenario0 = scenario
-        self.render_mode = render_mode
+        self.backend = backend = self._setup(scenario, preset, overrides, render_mode, backend, layout_seeds)
+        scenario = self.scenario
         self.world = C.build_world(scenario)
         self._layouts = OrderedDict([(scenario.layout_seed, (scenario, self.world))])
-        if backend == "auto":
-            backend = "compiled" if numba_available() else "python"
-        self.backend = backend
         if backend == "compiled":
             self._step, self._observe = C.compiled("step_observe"), C.compiled("observe")
         else:

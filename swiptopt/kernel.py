@@ -531,24 +531,8 @@ def step(  # type: ignore[no-untyped-def]
 
 
 def serve(  # type: ignore[no-untyped-def]
-    propulsion_j,
-    start,
-    stop,
-    uniforms,
-    normals,
-    cov_node,
-    cov_snr,
-    cov_pav,
-    capacity,
-    fail_prob,
-    params,
-    where,
-    data_left,
-    energy,
-    delivered,
-    collected,
-    acc,
-    parts,
+    propulsion_j, start, stop, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
+    where, data_left, energy, delivered, collected, acc, parts,
 ):
     """The rest of a step once the AUV has moved, whichever world it moves in: the
     propulsion energy ``propulsion_j`` of the move (plus the hotel load) is counted, the
