@@ -64,15 +64,26 @@ def scenario(world: str, layout: int) -> Scenario:
     return Scenario.preset("harbour", layout_seed=layout)
 
 
+def reference(world: str, name: str, layout: int) -> float:
+    """Mean return of the reference algorithm ``name`` on ``layout`` (task seed 1000 * layout)."""
+    seed = 1000 * layout
+    env = make_env(world, scenario(world, layout))
+    policy = build_policy(name, env, {}, seed)
+    return float(evaluate(policy, env, EPISODES, seed=seed + EVALUATION_OFFSET).summary["return"].mean)
+
+
 def references(layouts: int, world: str = GRID) -> dict[str, list[float]]:
-    """Mean return per layout of the world's reference algorithms (task seed 1000 * layout)."""
+    """Mean return per layout of the world's reference algorithms, each (algorithm, layout)
+    in a fresh process, one at a time: OMPL's seed is process-wide, so the OMPL tour of each
+    layout needs its own process (as the benchmark runs it)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
     out: dict[str, list[float]] = {name: [] for name in REFERENCES[world]}
-    for layout in range(layouts):
-        seed = 1000 * layout
-        for name in out:
-            env = make_env(world, scenario(world, layout))
-            policy = build_policy(name, env, {}, seed)
-            out[name].append(evaluate(policy, env, EPISODES, seed=seed + EVALUATION_OFFSET).summary["return"].mean)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), max_tasks_per_child=1) as pool:
+        for layout in range(layouts):
+            for name in out:
+                out[name].append(pool.submit(reference, world, name, layout).result())
     return out
 
 
