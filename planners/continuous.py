@@ -103,6 +103,10 @@ START_DEPTH_LEVELS = 4
 #: The compass search stops once its step is below this, m.
 SEARCH_MIN_STEP_M = 0.25
 
+#: Under fading, the model prices the service of a position at the nearest point of a grid
+#: this fine, m (:class:`_PointService`).
+SERVICE_GRID_M = 1e-3
+
 
 # ----------------------------------------------------------------------------- plans
 
@@ -168,6 +172,16 @@ class ContinuousPlan:
     """Model return of the best plan for every K tried."""
     ompl_plans: tuple[OmplCall, ...] = ()
     """Every OMPL plan made for this layout (over every K tried), in order."""
+    sites_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """(N, 3) the points the executor moves between: the start, then every hover point of
+    the plan's K (the stops and those pruned or dropped), m."""
+    routes: dict[tuple[int, int], Leg] = field(default_factory=dict)
+    """The leg from site i to site j (j >= 1), for every pair: the stops' legs are among them."""
+    stop_sites: tuple[int, ...] = ()
+    """The site of each stop, in tour order."""
+    site_model: Any = None
+    """:func:`point_model` of :attr:`sites_m`: what a step at each site earns (the executor's
+    estimates)."""
 
     @property
     def ompl_statuses(self) -> dict[str, int]:
@@ -276,58 +290,242 @@ def trajectory_return(world: Any, positions_m: np.ndarray, actions: np.ndarray) 
 
 
 class _Follower:
-    """Turns a plan's legs and dwells into actions, one per call, from the current position.
+    """Turns a plan into actions, one per call, from the current position and the nodes' state.
 
-    One piece of code serves the env (:meth:`_ContinuousTourPlanner.predict`) and the model
-    (:meth:`_ContinuousTourPlanner._rollout`), so the model scores what the executor does.
+    One piece of code serves the env (:meth:`_ContinuousTourPlanner.predict`, with the env's
+    state) and the model (:meth:`_ContinuousTourPlanner._rollout`, with the model's state), so
+    the model scores what the executor does. The rules (module docstring, "Executor"): follow
+    the route to the next stop; at a stop, hover its planned dwell; with ``adaptive``, skip a
+    stop whose covered nodes need nothing more, cut a dwell once they are all served, linger
+    up to ``linger_steps`` while a covered node still holds data and the rest of the tour
+    leaves room, and after the last stop spend the steps left at the site that earns most.
     """
 
-    def __init__(self, legs: tuple[Leg, ...], dwell_steps: np.ndarray, max_step_m: float):
-        self.legs = legs
-        self.dwell = [int(d) for d in dwell_steps]
-        self.max_step_m = max_step_m
-        self.stop = 0  # the stop being reached or served
-        self.waypoint = 1  # next waypoint of the current leg
-        self.hovered = 0  # hover steps spent at the current stop
+    def __init__(self, plan: ContinuousPlan, world: Any, *, adaptive: bool = True, linger_steps: int = 2):
+        self.sites = plan.sites_m
+        self.routes = plan.routes
+        self.order = [int(s) for s in plan.stop_sites]
+        self.dwell = [int(d) for d in plan.dwell_steps]
+        self.max_step_m = float(world.max_step_m)
+        self.steps = int(world.params[K.P_STEPS])
+        self.full_j = np.asarray(world.capacity, dtype=float) * 1e-12  # the kernel's "full" margin
+        self.needs_energy = bool(world.params[K.P_GAMMA] < 1.0)
+        self.adaptive = adaptive
+        self.linger_steps = linger_steps
+        model = plan.site_model
+        if model is not None:
+            self.cover = [model.cov_node[model.cov_ptr[s] : model.cov_ptr[s + 1]] for s in range(model.n_cells)]
+            self.pair_site = model.cell_of_pair()
+            self.pair_node = model.cov_node
+            self.bits, self.joules = model.bits, model.joules
+            self.data_weight, self.energy_weight = model.data_weight, model.energy_weight
+            self.stay_cost = model.stay_cost
+            p = world.params
+            self.move_per_j = float(p[K.P_LAMBDA] / p[K.P_MOVE_REF])
+        # per site of departure: steps, movement penalty and usability of the route to each site
+        n = len(self.sites)
+        self.route_steps = np.zeros((n, n), dtype=np.int64)
+        self.route_cost = np.zeros((n, n))
+        self.route_ok = np.zeros((n, n), dtype=bool)
+        if model is not None:
+            for (i, j), route in self.routes.items():
+                self.route_steps[i, j] = route.steps
+                self.route_cost[i, j] = self.move_per_j * route.energy_j
+                self.route_ok[i, j] = not route.source.startswith("straight (OMPL")
+            self.route_ok[np.arange(1, n), np.arange(1, n)] = True  # staying
+        self.next = 0  # index into order of the next planned stop
+        self.stop = -1  # index into order of the stop being served (-1: none)
+        self.site: int | None = 0  # the site the AUV is at (None: between sites, after giving up)
+        self.target = -1  # the site being travelled to
+        self.target_stop = -1  # its index into order (-1: a site of the end phase)
+        self.waypoints: np.ndarray | None = None  # the route being followed
+        self.waypoint = 1  # its next waypoint
+        self.hovered = 0  # hover steps of the planned dwell spent at the current stop
+        self.lingered = 0  # hover steps beyond it
+        self.end_phase = False
         self.last: tuple[np.ndarray, np.ndarray] | None = None  # (position, target) of the last move
-        self.given_up: list[int] = []
+        self.given_up: list[int] = []  # stops (indices into order) given up: a move made no progress
+        self.skipped: list[int] = []  # stops skipped: their nodes needed nothing more
+        self.excluded: set[int] = set()  # sites given up
 
-    def action(self, position_m: np.ndarray) -> np.ndarray:
+    # ----------------------------------------------------------------- the state
+
+    def _served(self, site: int, data_left: np.ndarray, room_left: np.ndarray) -> bool:
+        """Whether every node covered from ``site`` needs nothing more (the kernel's rule)."""
+        nodes = self.cover[site]
+        if np.any(data_left[nodes] > 0.0):
+            return False
+        return not self.needs_energy or bool(np.all(room_left[nodes] <= self.full_j[nodes]))
+
+    def _earnings(self, steps: np.ndarray, data_left: np.ndarray, room_left: np.ndarray) -> np.ndarray:
+        """(N,) what hovering ``steps[s]`` steps at each site s would earn from the nodes' state,
+        in the per-step model's expected amounts (service only)."""
+        n = steps[self.pair_site]
+        per_pair = self.data_weight * np.minimum(data_left[self.pair_node], n * self.bits) + self.energy_weight * (
+            np.minimum(room_left[self.pair_node], n * self.joules)
+        )
+        return np.bincount(self.pair_site, weights=per_pair, minlength=len(self.sites))
+
+    def _slack(self, steps_left: int, data_left: np.ndarray, room_left: np.ndarray) -> int:
+        """Steps to spare after the next one: the steps left less what the rest of the tour
+        needs (its routes, arrivals and dwells, each dwell no longer than its nodes need in
+        expectation; stops already served skipped)."""
+        need = 0
+        at = self.site
+        for i in range(self.next, len(self.order)):
+            s = self.order[i]
+            if self._served(s, data_left, room_left):
+                continue
+            need += self.routes[at, s].steps + 1 + min(self.dwell[i], self._steps_to_serve(s, data_left, room_left))
+            at = s
+        return steps_left - 1 - need
+
+    def _steps_to_serve(self, site: int, data_left: np.ndarray, room_left: np.ndarray) -> int:
+        """Expected hover steps after the arrival until the site's nodes are all served (a
+        large number if some never are)."""
+        sel = self.pair_site == site
+        nodes = self.pair_node[sel]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            data = np.where(data_left[nodes] > 0.0, data_left[nodes] / self.bits[sel], 0.0)
+            energy = np.where(room_left[nodes] > self.full_j[nodes], room_left[nodes] / self.joules[sel], 0.0)
+        worst = float(np.max(np.maximum(data, energy * self.needs_energy), initial=0.0))
+        return max(0, int(min(math.ceil(worst), self.steps)) - 1) if math.isfinite(worst) else self.steps
+
+    # ----------------------------------------------------------------- decisions
+
+    def action(self, position_m: np.ndarray, data_left: np.ndarray, room_left: np.ndarray, t: int) -> np.ndarray:
+        """The action of step ``t`` from ``position_m``, given each node's data left (bits) and
+        free storage (J)."""
         from swiptopt.continuous import action_towards
 
         position = np.asarray(position_m, dtype=float)
-        while self.stop < len(self.legs):
-            waypoints = self.legs[self.stop].waypoints_m
-            if self.waypoint < len(waypoints):
-                target = waypoints[self.waypoint]
-                if np.linalg.norm(target - position) <= ARRIVAL_TOLERANCE_M:
-                    self.waypoint += 1
-                    continue
-                if self.last is not None and np.array_equal(self.last[1], target) and (
-                    np.linalg.norm(position - self.last[0]) < NO_PROGRESS_M
-                ):
-                    # the last move towards this waypoint was stopped by an obstacle: give up the stop
-                    self.given_up.append(self.stop)
-                    self._next_stop(from_here=True)
-                    continue
-                self.last = (position.copy(), target)
-                return np.asarray(action_towards(position, target, self.max_step_m), dtype=np.float32)
-            if self.hovered < self.dwell[self.stop]:
-                self.hovered += 1
-                self.last = None
+        steps_left = self.steps - t
+        for _ in range(4 * len(self.sites) + 8):  # each pass moves the state machine on
+            if self.waypoints is not None:
+                if self.waypoint < len(self.waypoints):
+                    target = self.waypoints[self.waypoint]
+                    if np.linalg.norm(target - position) <= ARRIVAL_TOLERANCE_M:
+                        self.waypoint += 1
+                        continue
+                    if self.last is not None and np.array_equal(self.last[1], target) and (
+                        np.linalg.norm(position - self.last[0]) < NO_PROGRESS_M
+                    ):
+                        # the last move towards this waypoint was stopped by an obstacle: give up
+                        if self.target_stop >= 0:
+                            self.given_up.append(self.target_stop)
+                        self.excluded.add(self.target)
+                        self.waypoints, self.site, self.last = None, None, None
+                        continue
+                    self.last = (position.copy(), target)
+                    return np.asarray(action_towards(position, target, self.max_step_m), dtype=np.float32)
+                # arrived: the arrival step has served the site
+                self.site, self.stop, self.waypoints, self.last = self.target, self.target_stop, None, None
+                self.hovered = self.lingered = 0
+                continue
+            if self.stop >= 0:
+                if self._stay_at_stop(data_left, room_left, steps_left):
+                    return np.zeros(3, dtype=np.float32)
+                self.stop = -1
+            site = self._next_site(data_left, room_left, steps_left)
+            if site is None or site == self.site:
                 return np.zeros(3, dtype=np.float32)
-            self._next_stop(from_here=False)
-        self.last = None
-        return np.zeros(3, dtype=np.float32)
+            self._travel_to(position, site)
+        raise AssertionError("the executor's state machine did not settle")  # pragma: no cover
 
-    def _next_stop(self, *, from_here: bool) -> None:
-        self.stop += 1
-        self.hovered = 0
-        self.last = None
-        # after giving up, steer straight at the next stop (its leg starts where we did not get)
-        self.waypoint = 1
-        if from_here and self.stop < len(self.legs):
-            self.waypoint = len(self.legs[self.stop].waypoints_m) - 1
+    def _stay_at_stop(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> bool:
+        served = self.adaptive and self._served(self.site, data_left, room_left)
+        if self.hovered < self.dwell[self.stop] and not served:
+            self.hovered += 1
+            return True
+        if (
+            self.adaptive
+            and self.lingered < self.linger_steps
+            and np.any(data_left[self.cover[self.site]] > 0.0)
+            and self._slack(steps_left, data_left, room_left) >= 0
+        ):
+            self.lingered += 1
+            return True
+        return False
+
+    def _next_site(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> int | None:
+        """The next planned stop that still needs something (recorded in ``target_stop``),
+        else, with ``adaptive``, the site of the end phase; None: hover."""
+        while self.next < len(self.order):
+            i = self.next
+            self.next += 1
+            s = self.order[i]
+            if self.adaptive and self._served(s, data_left, room_left) and self._can_skip(i):
+                self.skipped.append(i)
+                continue
+            self.target_stop = i
+            return s
+        self.target_stop = -1
+        if not self.adaptive or self.site is None:
+            return None
+        self.end_phase = True
+        return self._best_site(data_left, room_left, steps_left)
+
+    def _can_skip(self, i: int) -> bool:
+        """Whether stop i can be left out: the route from here to the stop after it is free
+        (a blocked route is kept only in the planned order, where the tour put it)."""
+        if i + 1 >= len(self.order) or self.site is None:
+            return True
+        return not self.routes[self.site, self.order[i + 1]].source.startswith("straight (OMPL")
+
+    def _best_site(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> int | None:
+        """The end phase: the site where the steps left earn most, less the route there and
+        the hovering; the current site when nothing beats staying."""
+        here = self.site
+        hover = np.maximum(steps_left - self.route_steps[here], 0)
+        value = self._earnings(hover, data_left, room_left) - self.route_cost[here] - hover * self.stay_cost
+        ok = self.route_ok[here].copy()
+        ok[list(self.excluded)] = False
+        value[~ok | (hover <= 0)] = -np.inf
+        if here >= 1:
+            value[here] += 1e-12  # stay unless moving earns more
+        best = int(np.argmax(value))
+        return best if np.isfinite(value[best]) else None
+
+    def _travel_to(self, position: np.ndarray, site: int) -> None:
+        if self.site is None:  # after giving up: straight at it from here
+            self.waypoints = np.stack([position, self.sites[site]])
+        else:
+            self.waypoints = self.routes[self.site, site].waypoints_m
+        self.target, self.waypoint, self.site, self.last = site, 1, None, None
+
+
+class _PointService:
+    """The per-step model's service from single positions (:func:`point_model`), computed
+    in batches and kept, for the model's rollouts.
+
+    On a deterministic channel the amounts are the kernel's own, cheap to compute, and kept
+    by exact position. Under fading each costs a quadrature, and the executor's positions
+    differ by float rounding from run to run (where it arrives at a site depends on where it
+    came from, within a micrometre), so the expected amounts are priced at the position
+    rounded to :data:`SERVICE_GRID_M` and kept by that: the same few points serve every run.
+    """
+
+    def __init__(self, world: Any):
+        self.world = world
+        self.exact = point_model(world, np.zeros((0, 3))).exact
+        self.known: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def _point(self, position_m: np.ndarray) -> np.ndarray:
+        return position_m if self.exact else np.round(position_m / SERVICE_GRID_M) * SERVICE_GRID_M
+
+    def get(self, position_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(nodes, bits, joules) a step ending at the position serves, or None if not computed."""
+        return self.known.get(self._point(position_m).tobytes())
+
+    def compute(self, positions_m: list[np.ndarray]) -> None:
+        points = [self._point(p) for p in positions_m]
+        fresh = {p.tobytes(): p for p in points if p.tobytes() not in self.known}
+        if not fresh:
+            return
+        model = point_model(self.world, np.stack(list(fresh.values())))
+        for c, key in enumerate(fresh):
+            lo, hi = model.cov_ptr[c], model.cov_ptr[c + 1]
+            self.known[key] = (model.cov_node[lo:hi], model.bits[lo:hi], model.joules[lo:hi])
 
 
 # ------------------------------------------------------------------------- planners
@@ -366,6 +564,8 @@ class _ContinuousTourPlanner:
         search_evaluations: int = 120,
         prune: bool = True,
         tsp_time_limit_s: float = 60.0,
+        adaptive: bool = True,
+        linger_steps: int = 2,
     ):
         self.seed = _integer("seed", seed, low=0)
         if self.seed > MAX_SEED:
@@ -378,6 +578,10 @@ class _ContinuousTourPlanner:
             raise ConfigError(f"prune = {prune!r} must be true or false", "prune")
         self.prune = prune
         self.tsp_time_limit_s = _real("tsp_time_limit_s", tsp_time_limit_s, unit="s")
+        if not isinstance(adaptive, bool):
+            raise ConfigError(f"adaptive = {adaptive!r} must be true or false", "adaptive")
+        self.adaptive = adaptive
+        self.linger_steps = _integer("linger_steps", linger_steps, low=0)
         self._plans: dict[str, ContinuousPlan] = {}
         self._env: Any = None
         self._follower: _Follower | None = None
@@ -391,14 +595,20 @@ class _ContinuousTourPlanner:
             self._plans[key] = self.make_plan(env.world, env.scenario)
         self.plan_ = self._plans[key]
         self._env = env
-        self._follower = _Follower(self.plan_.legs, self.plan_.dwell_steps, float(env.world.max_step_m))
+        self._follower = self._follower_of(self.plan_, env.world)
         self.given_up_ = self._follower.given_up
+        self.skipped_ = self._follower.skipped
 
     def predict(self, obs: Any, deterministic: bool = True) -> np.ndarray:
         """The next velocity action (3,) float32 (see the module docstring)."""
         if self._follower is None:
             raise RuntimeError("call begin_episode(env, obs, info) after each reset (swiptopt.evaluate does)")
-        return self._follower.action(self._env.position)
+        state = self._env.state
+        room_left = np.asarray(self._env.world.capacity) - state.energy
+        return self._follower.action(self._env.position, state.data_left, room_left, int(state.t))
+
+    def _follower_of(self, plan: ContinuousPlan, world: Any) -> _Follower:
+        return _Follower(plan, world, adaptive=self.adaptive, linger_steps=self.linger_steps)
 
     # ------------------------------------------------------------- planning
 
@@ -406,6 +616,7 @@ class _ContinuousTourPlanner:
         """Plan the tour for ``world`` (:func:`swiptopt.continuous.build_world` of ``scenario``)."""
         self._pair_cache: dict[tuple[bytes, bytes], tuple[np.ndarray, str]] = {}
         self._ompl_calls: list[OmplCall] = []
+        self._service = _PointService(world)
         from swiptopt.continuous import coverable_nodes
 
         coverable = np.flatnonzero(coverable_nodes(scenario))
@@ -429,11 +640,17 @@ class _ContinuousTourPlanner:
         return dataclasses.replace(best, candidates=candidates, ompl_plans=tuple(self._ompl_calls))
 
     def _empty_plan(self, world: Any, status: str) -> ContinuousPlan:
-        positions, actions = self._rollout(world, (), np.zeros(0, dtype=np.int64))
-        return ContinuousPlan(
-            0, np.zeros((0, 3)), (), (), np.zeros(0, dtype=np.int64), None, "no_coverage",
-            trajectory_return(world, positions, actions), positions, actions, status,
+        sites = np.asarray(world.start_m, dtype=float)[None, :].copy()
+        plan = ContinuousPlan(
+            0, np.zeros((0, 3)), (), (), np.zeros(0, dtype=np.int64), None, "no_coverage", 0.0, sites,
+            np.zeros((0, 3), dtype=np.float32), status, sites_m=sites, site_model=point_model(world, sites),
         )
+        return self._scored(world, plan)
+
+    def _scored(self, world: Any, plan: ContinuousPlan) -> ContinuousPlan:
+        """``plan`` with the executor's trajectory in the model and its return."""
+        positions, actions, model_return = self._rollout(world, plan)
+        return dataclasses.replace(plan, positions_m=positions, actions=actions, model_return=model_return)
 
     def _hover_point(self, world: Any, scenario: Any, group: np.ndarray) -> np.ndarray:
         """The group's hover point: the best start above it, then the compass search."""
@@ -493,80 +710,84 @@ class _ContinuousTourPlanner:
         from planners.paths3d import path_energy_j
         from planners.tsp import solve_tsp
 
-        stops = np.concatenate([np.asarray(world.start_m, dtype=float)[None, :], points])
-        n = len(stops)
-        paths: dict[tuple[int, int], tuple[np.ndarray, str]] = {}
+        sites = np.concatenate([np.asarray(world.start_m, dtype=float)[None, :], points])
+        n = len(sites)
+        max_step = float(world.max_step_m)
+        routes: dict[tuple[int, int], Leg] = {}
         cost = np.zeros((n, n))
         blocked = np.zeros((n, n), dtype=bool)
         for i in range(n):
             for j in range(1, n):
                 if i == j:
                     continue
-                waypoints, source = self._pair(world, scenario, stops[i], stops[j])
-                paths[i, j] = (waypoints, source)
+                waypoints, source = self._pair(world, scenario, sites[i], sites[j])
+                leg = Leg(waypoints, path_energy_j(waypoints, scenario), _leg_steps(waypoints, max_step), source)
+                routes[i, j] = leg
                 if self.tour_cost == "length":
                     cost[i, j] = float(np.linalg.norm(np.diff(waypoints, axis=0), axis=1).sum())
                 else:
-                    cost[i, j] = path_energy_j(waypoints, scenario)
+                    cost[i, j] = leg.energy_j
                 blocked[i, j] = source.startswith("straight (OMPL")
         if blocked.any():
             cost[blocked] = BLOCKED_COST_FACTOR * cost[~blocked].max(initial=1.0)
         tour = solve_tsp(cost, start=0, closed=False, time_limit_s=self.tsp_time_limit_s)
         order = list(tour.order[1:])
+        network = (sites, routes, point_model(world, sites))
 
-        plan = self._dwell_plan(world, scenario, k, stops, order, paths, groups, f"tsp {tour.status}")
+        plan = self._dwell_plan(world, k, network, order, groups, f"tsp {tour.status}")
         if self.prune:
             improved = True
             while improved and len(order) > 1:
                 improved = False
                 for j in range(len(order)):
                     fewer = order[:j] + order[j + 1 :]
-                    other = self._dwell_plan(world, scenario, k, stops, fewer, paths, groups, f"tsp {tour.status}")
+                    other = self._dwell_plan(world, k, network, fewer, groups, f"tsp {tour.status}")
                     if other.model_return >= plan.model_return - 1e-12:
                         order, plan, improved = fewer, other, True
                         break
         return plan
 
     def _dwell_plan(
-        self, world: Any, scenario: Any, k: int, stops: np.ndarray, order: list[int],
-        paths: dict[tuple[int, int], tuple[np.ndarray, str]], groups: list[np.ndarray], status: str,
+        self, world: Any, k: int, network: tuple[np.ndarray, dict[tuple[int, int], Leg], Any], order: list[int],
+        groups: list[np.ndarray], status: str,
     ) -> ContinuousPlan:
-        """The plan visiting ``order`` (indices into ``stops``; 0 is the start): legs, the
-        tail that fits the episode, dwells from the convex program, and the model return."""
-        from planners.paths3d import path_energy_j
-
+        """The plan visiting ``order`` (site indices; 0 is the start): legs, the tail that fits
+        the episode, dwells from the convex program, and the executor's model return."""
+        sites, routes, site_model = network
         steps_total = int(world.params[K.P_STEPS])
-        max_step = float(world.max_step_m)
         legs: list[Leg] = []
         used = 0
         here = 0
         for s in order:
-            waypoints, source = paths[here, s]
-            steps = _leg_steps(waypoints, max_step)
-            if used + steps > steps_total:
+            leg = routes[here, s]
+            if used + leg.steps > steps_total:
                 status += "; dropped the stops beyond the episode"
                 break
-            legs.append(Leg(waypoints, path_energy_j(waypoints, scenario), steps, source))
-            used += steps
+            legs.append(leg)
+            used += leg.steps
             here = s
         kept = order[: len(legs)]
         if not kept:
             return self._empty_plan(world, status + "; no stop within the episode")
-        dwell, value, dwell_status = self._dwells(world, stops[kept], steps_total - used + len(kept))
-        positions, actions = self._rollout(world, tuple(legs), dwell)
-        return ContinuousPlan(
+        dwell, value, dwell_status = self._dwells(world, sites[kept], steps_total - used + len(kept))
+        plan = ContinuousPlan(
             k=k,
-            hover_points_m=stops[kept],
+            hover_points_m=sites[kept],
             groups=tuple(groups[s - 1] for s in kept),
             legs=tuple(legs),
             dwell_steps=dwell,
             dwell_value=value,
             dwell_status=dwell_status,
-            model_return=trajectory_return(world, positions, actions),
-            positions_m=positions,
-            actions=actions,
+            model_return=0.0,
+            positions_m=sites[:1],
+            actions=np.zeros((0, 3), dtype=np.float32),
             status=f"{status}, dwell {dwell_status}",
+            sites_m=sites,
+            routes=routes,
+            stop_sites=tuple(int(s) for s in kept),
+            site_model=site_model,
         )
+        return self._scored(world, plan)
 
     def _dwells(self, world: Any, points: np.ndarray, service_steps: int) -> tuple[np.ndarray, float | None, str]:
         """Hover steps after each arrival, from the convex program with the simulator's split."""
@@ -603,21 +824,62 @@ class _ContinuousTourPlanner:
         steps = _integer_steps(wanted, max(service_steps, len(points)))
         return steps - 1, result.objective, result.status
 
-    def _rollout(self, world: Any, legs: tuple[Leg, ...], dwell: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The executor run over model positions for the whole episode: (T + 1, 3) positions and
-        (T, 3) actions, moving as the env moves an unobstructed AUV."""
-        from swiptopt.continuous import velocity_of
+    def _rollout(self, world: Any, plan: ContinuousPlan) -> tuple[np.ndarray, np.ndarray, float]:
+        """The executor run in the per-step model: (T + 1, 3) positions, (T, 3) actions and the
+        return, moving as the env moves an unobstructed AUV and serving with the model's
+        expected amounts (:func:`trajectory_return`'s rules; T < the episode when every node
+        is served).
 
-        follower = _Follower(legs, dwell, float(world.max_step_m))
-        steps = int(world.params[K.P_STEPS])
-        positions = np.empty((steps + 1, 3))
-        actions = np.empty((steps, 3), dtype=np.float32)
-        positions[0] = world.start_m
-        for t in range(steps):
-            actions[t] = follower.action(positions[t])
-            # the env's arithmetic: the unit command times the step's reach
-            positions[t + 1] = positions[t] + velocity_of(actions[t], 1.0) * world.max_step_m
-        return positions, actions
+        The executor reacts to the nodes' state, so the positions are not known before the
+        run: a run looks up what each position serves among those already computed and
+        collects the others, which are computed at once (:class:`_PointService`) for the next
+        run; the run that finds every position known is the answer. Each run is exact up to
+        the first position the one before it lacked, so the runs end.
+        """
+        from swiptopt.continuous import propulsion_energy_j, velocity_of
+
+        p = world.params
+        steps = int(p[K.P_STEPS])
+        move_weight = float(p[K.P_LAMBDA] / p[K.P_MOVE_REF])
+        hotel_j = float(p[K.P_HOTEL_J])
+        capacity = np.asarray(world.capacity, dtype=float)
+        data0 = np.asarray(world.data0, dtype=float)
+        room0 = np.maximum(capacity - np.asarray(world.energy0, dtype=float), 0.0)
+        needs_energy = bool(p[K.P_GAMMA] < 1.0)
+        data_weight, energy_weight = plan.site_model.data_weight, plan.site_model.energy_weight
+        for _ in range(steps + 1):
+            follower = self._follower_of(plan, world)
+            data_left, room_left = data0.copy(), room0.copy()
+            positions = np.empty((steps + 1, 3))
+            actions = np.empty((steps, 3), dtype=np.float32)
+            positions[0] = world.start_m
+            total, ran, missing = 0.0, steps, []
+            for t in range(steps):
+                actions[t] = follower.action(positions[t], data_left, room_left, t)
+                unit = velocity_of(actions[t], 1.0)
+                total -= move_weight * (propulsion_energy_j(world, positions[t], unit * world.speed_mps) + hotel_j)
+                # the env's arithmetic: the unit command times the step's reach
+                positions[t + 1] = positions[t] + unit * world.max_step_m
+                served = self._service.get(positions[t + 1])
+                if served is None:
+                    missing.append(positions[t + 1].copy())
+                    continue
+                nodes, bits, joules = served
+                bits = np.minimum(data_left[nodes], bits)
+                joules = np.minimum(room_left[nodes], joules)
+                data_left[nodes] -= bits
+                room_left[nodes] -= joules
+                gained = data_weight * float(bits.sum()) + energy_weight * float(joules.sum())
+                total += gained
+                if gained > 0.0 and not np.any(data_left > 0.0) and (
+                    not needs_energy or bool(np.all(room_left <= capacity * 1e-12))
+                ):
+                    ran = t + 1  # every node served: the env ends the episode here
+                    break
+            if not missing:
+                return positions[: ran + 1], actions[:ran], float(total)
+            self._service.compute(missing)
+        raise AssertionError("the model's rollout did not settle")  # pragma: no cover
 
 
 def _leg_steps(waypoints_m: np.ndarray, max_step_m: float) -> int:
