@@ -333,6 +333,8 @@ class _Follower:
                 self.route_cost[i, j] = self.move_per_j * route.energy_j
                 self.route_ok[i, j] = not route.source.startswith("straight (OMPL")
             self.route_ok[np.arange(1, n), np.arange(1, n)] = True  # staying
+            used = self.route_steps > 0
+            self.cost_per_step = float(self.route_cost[used].sum() / max(1, self.route_steps[used].sum()))
         self.next = 0  # index into order of the next planned stop
         self.stop = -1  # index into order of the stop being served (-1: none)
         self.site: int | None = 0  # the site the AUV is at (None: between sites, after giving up)
@@ -426,7 +428,7 @@ class _Follower:
                 if self._stay_at_stop(data_left, room_left, steps_left):
                     return np.zeros(3, dtype=np.float32)
                 self.stop = -1
-            site = self._next_site(data_left, room_left, steps_left)
+            site = self._next_site(position, data_left, room_left, steps_left)
             if site is None or site == self.site:
                 return np.zeros(3, dtype=np.float32)
             self._travel_to(position, site)
@@ -447,7 +449,9 @@ class _Follower:
             return True
         return False
 
-    def _next_site(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> int | None:
+    def _next_site(
+        self, position: np.ndarray, data_left: np.ndarray, room_left: np.ndarray, steps_left: int
+    ) -> int | None:
         """The next planned stop that still needs something (recorded in ``target_stop``),
         else, with ``adaptive``, the site of the end phase; None: hover."""
         while self.next < len(self.order):
@@ -460,10 +464,10 @@ class _Follower:
             self.target_stop = i
             return s
         self.target_stop = -1
-        if not self.adaptive or self.site is None:
+        if not self.adaptive:
             return None
         self.end_phase = True
-        return self._best_site(data_left, room_left, steps_left)
+        return self._best_site(position, data_left, room_left, steps_left)
 
     def _can_skip(self, i: int) -> bool:
         """Whether stop i can be left out: the route from here to the stop after it is free
@@ -472,16 +476,23 @@ class _Follower:
             return True
         return not self.routes[self.site, self.order[i + 1]].source.startswith("straight (OMPL")
 
-    def _best_site(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> int | None:
+    def _best_site(
+        self, position: np.ndarray, data_left: np.ndarray, room_left: np.ndarray, steps_left: int
+    ) -> int | None:
         """The end phase: the site where the steps left earn most, less the route there and
-        the hovering; the current site when nothing beats staying."""
+        the hovering; the current site when nothing beats staying. Away from every site (after
+        giving up) the routes are straight, priced at the routes' mean cost per step."""
         here = self.site
-        hover = np.maximum(steps_left - self.route_steps[here], 0)
-        value = self._earnings(hover, data_left, room_left) - self.route_cost[here] - hover * self.stay_cost
-        ok = self.route_ok[here].copy()
+        if here is None:
+            travel = np.ceil(np.linalg.norm(self.sites - position, axis=1) / self.max_step_m - 1e-9).astype(np.int64)
+            cost, ok = travel * self.cost_per_step, np.arange(len(self.sites)) >= 1
+        else:
+            travel, cost, ok = self.route_steps[here], self.route_cost[here], self.route_ok[here].copy()
+        hover = np.maximum(steps_left - travel, 0)
+        value = self._earnings(hover, data_left, room_left) - cost - hover * self.stay_cost
         ok[list(self.excluded)] = False
         value[~ok | (hover <= 0)] = -np.inf
-        if here >= 1:
+        if here is not None and here >= 1:
             value[here] += 1e-12  # stay unless moving earns more
         best = int(np.argmax(value))
         return best if np.isfinite(value[best]) else None
