@@ -205,17 +205,41 @@ def _min_energy_per_m(scenario: Scenario) -> float:
     return float(auv.move_energy_j(1.0, v, power, scenario.hotel_power_w))
 
 
-def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, float, float, float], float]:
-    """A scalar twin of :func:`segment_energy_j` for OMPL's hot loop (one segment, no numpy).
+def _segment_energy(ax, ay, az, bx, by, bz, coef):  # type: ignore[no-untyped-def]
+    """A scalar twin of :func:`segment_energy_j` for OMPL's hot loop: one segment, J.
 
-    numpy costs ~15 us per call and the planners ask for hundreds of thousands of motion
-    costs, so this closure repeats the same quadrature on floats. Its constants come from
-    the shared functions: the cubic coefficient of eq. 18 is ``propulsion_power_w(1 m/s)``
-    and the current is the scenario's (linear in depth) at the surface and the bottom. A
-    test pins it to :func:`segment_energy_j`.
+    ``coef`` (:func:`_energy_coefficients`): speed, hotel power, the cubic coefficient of
+    eq. 18, the current at the surface and its gradient with depth. Plain Python on floats,
+    compiled by numba (:func:`_energy_function`): numpy costs ~15 us per call and the
+    planners ask for hundreds of thousands of motion costs. A test pins it to
+    :func:`segment_energy_j`.
     """
-    v = scenario.speed_mps
-    hotel_w = scenario.hotel_power_w
+    dx = bx - ax
+    dy = by - ay
+    dz = bz - az
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d == 0.0:
+        return 0.0
+    v = coef[0]
+    s = v / d
+    ux = dx * s - coef[3]
+    uy = dy * s - coef[4]
+    uz = dz * s - coef[5]
+    cube = 0.0
+    for n in range(3):
+        z = az + _GAUSS_T[n] * dz
+        wx = ux - coef[6] * z
+        wy = uy - coef[7] * z
+        wz = uz - coef[8] * z
+        w2 = wx * wx + wy * wy + wz * wz
+        cube += _GAUSS_W[n] * w2 * math.sqrt(w2)
+    return (coef[2] * cube + coef[1]) * d / v
+
+
+def _energy_coefficients(scenario: Scenario) -> np.ndarray:
+    """The constants of :func:`_segment_energy`, from the shared functions: the cubic
+    coefficient of eq. 18 is ``propulsion_power_w(1 m/s)`` and the current is the
+    scenario's (linear in depth) at the surface and the bottom."""
     k_w = float(
         auv.propulsion_power_w(
             1.0,
@@ -225,41 +249,27 @@ def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, flo
             scenario.propulsion_efficiency,
         )
     )
-    c0x, c0y, c0z = (float(c) for c in scenario.current_at_mps(0.0))
-    c1 = scenario.current_at_mps(scenario.depth_m)
-    gx, gy, gz = (float(c) for c in (c1 - np.array([c0x, c0y, c0z])) / scenario.depth_m)
-    nodes = tuple(zip(_GAUSS_T, _GAUSS_W))
+    top = np.asarray(scenario.current_at_mps(0.0), dtype=float)
+    gradient = (np.asarray(scenario.current_at_mps(scenario.depth_m), dtype=float) - top) / scenario.depth_m
+    return np.array([scenario.speed_mps, scenario.hotel_power_w, k_w, *top, *gradient], dtype=float)
 
-    if gx == gy == gz == 0.0:
 
-        def energy_uniform(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
-            dx, dy, dz = bx - ax, by - ay, bz - az
-            d = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if d == 0.0:
-                return 0.0
-            s = v / d
-            wx, wy, wz = dx * s - c0x, dy * s - c0y, dz * s - c0z
-            w2 = wx * wx + wy * wy + wz * wz
-            return (k_w * w2 * math.sqrt(w2) + hotel_w) * d / v
+@functools.lru_cache(maxsize=1)
+def _energy_function() -> Callable[..., float]:
+    """:func:`_segment_energy`, numba-compiled when numba is installed."""
+    from swiptopt.jit import compile_family, numba_available
 
-        return energy_uniform
+    if not numba_available():
+        return _segment_energy
+    compiled = compile_family({"_segment_energy": _segment_energy})["_segment_energy"]
+    compiled(0.0, 0.0, 0.0, 1.0, 1.0, 1.0, np.ones(9))  # compile now, not in a planner's time limit
+    return compiled
 
-    def energy(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
-        dx, dy, dz = bx - ax, by - ay, bz - az
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if d == 0.0:
-            return 0.0
-        s = v / d
-        ux, uy, uz = dx * s - c0x, dy * s - c0y, dz * s - c0z
-        cube = 0.0
-        for t, weight in nodes:
-            z = az + t * dz
-            wx, wy, wz = ux - gx * z, uy - gy * z, uz - gz * z
-            w2 = wx * wx + wy * wy + wz * wz
-            cube += weight * w2 * math.sqrt(w2)
-        return (k_w * cube + hotel_w) * d / v
 
-    return energy
+def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, float, float, float], float]:
+    """:func:`_segment_energy` for ``scenario``'s AUV and current, as f(ax, ay, az, bx, by, bz)."""
+    energy, coef = _energy_function(), _energy_coefficients(scenario)
+    return lambda ax, ay, az, bx, by, bz: float(energy(ax, ay, az, bx, by, bz, coef))
 
 
 @functools.lru_cache(maxsize=None)
@@ -296,7 +306,8 @@ def _energy_objective_type() -> type:
 
         def __init__(self, si: Any, scenario: Scenario):
             super().__init__(si)
-            self._segment_j = _segment_energy_fn(scenario)
+            self._segment_j = _energy_function()
+            self._coef = _energy_coefficients(scenario)
             self._floor_j_per_m = _min_energy_per_m(scenario)
             currents = np.stack([scenario.current_at_mps(0.0), scenario.current_at_mps(scenario.depth_m)])
             self._symmetric = not currents.any()
@@ -307,7 +318,7 @@ def _energy_objective_type() -> type:
             return self._zero
 
         def motionCost(self, s1: Any, s2: Any) -> Any:
-            return ob.Cost(self._segment_j(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2]))
+            return ob.Cost(self._segment_j(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2], self._coef))
 
         def motionCostHeuristic(self, s1: Any, s2: Any) -> Any:
             # admissible: no metre of ground track costs less than the floor
