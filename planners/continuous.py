@@ -348,6 +348,8 @@ class _Follower:
         self.last: tuple[np.ndarray, np.ndarray] | None = None  # (position, target) of the last move
         self.given_up: list[int] = []  # stops (indices into order) given up: a move made no progress
         self.skipped: list[int] = []  # stops skipped: their nodes needed nothing more
+        self.cut: list[int] = []  # stops whose dwell was cut short: their nodes needed nothing more
+        self.lingered_steps = 0  # hover steps beyond the planned dwells, over the episode
         self.excluded: set[int] = set()  # sites given up
 
     # ----------------------------------------------------------------- the state
@@ -435,10 +437,12 @@ class _Follower:
         raise AssertionError("the executor's state machine did not settle")  # pragma: no cover
 
     def _stay_at_stop(self, data_left: np.ndarray, room_left: np.ndarray, steps_left: int) -> bool:
-        served = self.adaptive and self._served(self.site, data_left, room_left)
-        if self.hovered < self.dwell[self.stop] and not served:
-            self.hovered += 1
-            return True
+        if self.hovered < self.dwell[self.stop]:
+            if not (self.adaptive and self._served(self.site, data_left, room_left)):
+                self.hovered += 1
+                return True
+            self.cut.append(self.stop)
+            return False
         if (
             self.adaptive
             and self.lingered < self.linger_steps
@@ -446,6 +450,7 @@ class _Follower:
             and self._slack(steps_left, data_left, room_left) >= 0
         ):
             self.lingered += 1
+            self.lingered_steps += 1
             return True
         return False
 
@@ -609,6 +614,7 @@ class _ContinuousTourPlanner:
         self._follower = self._follower_of(self.plan_, env.world)
         self.given_up_ = self._follower.given_up
         self.skipped_ = self._follower.skipped
+        self.cut_ = self._follower.cut
 
     def predict(self, obs: Any, deterministic: bool = True) -> np.ndarray:
         """The next velocity action (3,) float32 (see the module docstring)."""
@@ -936,9 +942,12 @@ class OmplTourPlanner(_ContinuousTourPlanner):
         search_evaluations: int = 120,
         prune: bool = True,
         tsp_time_limit_s: float = 60.0,
+        adaptive: bool = True,
+        linger_steps: int = 2,
     ):
         super().__init__(seed, k=k, k_max=k_max, clearance_m=clearance_m, search_evaluations=search_evaluations,
-                         prune=prune, tsp_time_limit_s=tsp_time_limit_s)
+                         prune=prune, tsp_time_limit_s=tsp_time_limit_s, adaptive=adaptive,
+                         linger_steps=linger_steps)
         self.ompl_iterations = _integer("ompl_iterations", ompl_iterations, low=1)
         if ompl_planner not in PLANNERS or ompl_planner in CRASHING_PLANNERS or ompl_planner in NO_PYTHON_OBJECTIVE_PLANNERS:
             allowed = [p for p in PLANNERS if p not in CRASHING_PLANNERS and p not in NO_PYTHON_OBJECTIVE_PLANNERS]
