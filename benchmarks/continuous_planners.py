@@ -1,15 +1,16 @@
-"""The continuous world's planners on the harbour layouts: return and planning time for a few k_max.
+"""The continuous world's planners on the harbour layouts: return and planning time per configuration.
 
-Each configuration runs in a fresh process (OMPL's random seed is process-wide, so a plan
-depends on what the process planned before): the OMPL tour (``OmplTourPlanner(0, k_max=K)``)
-plans layouts ``--layouts`` of the harbour preset in order, and :func:`swiptopt.evaluate`
-scores it over ``--episodes`` episodes (seed 100), as C1's command did; then the straight-line
-planner the same way. Planning time is reported as wall clock and as the process's CPU time
-(steadier on a shared machine); imports and numba compilation happen before the first plan
-and are not counted. ``--fixed`` also runs the executor without its reactions
-(``adaptive=False``), the planned tour as planned. The machine is printed first. Usage:
+Each configuration is a planner with settings, run in a fresh process (OMPL's random seed is
+process-wide, so a plan depends on what the process planned before): the planner
+(``OmplTourPlanner(0, **settings)`` or ``StraightLinePlanner(0, **settings)``) plans the
+harbour preset's layouts ``--layouts`` in order, and :func:`swiptopt.evaluate` scores it over
+``--episodes`` episodes (seed 100). The first configuration is the reference the others are
+compared with, layout by layout. Planning time is reported as wall clock and as the process's
+CPU time (steadier on a shared machine); imports and numba compilation happen before the
+first plan and are not counted. The machine is printed first. Usage:
 
-    python benchmarks/continuous_planners.py [--k-max 8 10 12] [--layouts 0 1 ... 11] [--episodes 5] [--fixed]
+    python benchmarks/continuous_planners.py [CONFIG ...] [--layouts 0 1 ... 11] [--episodes 5]
+    # e.g. straight 'ompl:{"k_max": 8, "k_patience": null}' 'ompl:{"adaptive": false}'
 """
 
 from __future__ import annotations
@@ -66,36 +67,39 @@ def in_fresh_process(planner: str, settings: dict, layouts: list[int], episodes:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+DEFAULT_CONFIGS = ["straight", "ompl"]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--k-max", type=int, nargs="+", default=[8, 10, 12])
+    parser.add_argument("configs", nargs="*", default=DEFAULT_CONFIGS,
+                        help='"ompl" or "straight", optionally with settings as JSON: \'ompl:{"k_max": 12}\' '
+                             "(default: both planners with their defaults); the first is the reference")
     parser.add_argument("--layouts", type=int, nargs="+", default=list(range(12)))
     parser.add_argument("--episodes", type=int, default=5)
-    parser.add_argument("--fixed", action="store_true", help="also the executor without its reactions")
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
     from machine import describe
 
     print(describe())
-    configs = [("straight", "straight line", {})]
-    for k in args.k_max:
-        configs.append(("ompl", f"OMPL tour, k_max {k}", {"k_max": k}))
-        if args.fixed:
-            configs.append(("ompl", f"OMPL tour, k_max {k}, fixed executor", {"k_max": k, "adaptive": False}))
     print(f"harbour layouts {args.layouts}, {args.episodes} episodes each (seed 100); planning time per layout")
-    print(f"{'planner':<36}{'mean return':>12}{'model':>8}{'wall s (max)':>16}{'CPU s (max)':>15}  K per layout")
-    straight = None
-    for planner, label, settings in configs:
+    print(f"{'planner':<52}{'mean return':>12}{'model':>8}{'wall s (max)':>16}{'CPU s (max)':>15}")
+    reference = None
+    for config in args.configs:
+        planner, _, text = config.partition(":")
+        settings = json.loads(text) if text else {}
         rows = in_fresh_process(planner, settings, args.layouts, args.episodes)
         returns = np.array([r["return"] for r in rows])
         wall, cpu = np.array([r["wall_s"] for r in rows]), np.array([r["cpu_s"] for r in rows])
-        print(f"{label:<36}{returns.mean():>12.2f}{np.mean([r['model'] for r in rows]):>8.2f}"
-              f"{wall.mean():>8.1f} ({wall.max():4.1f}){cpu.mean():>8.1f} ({cpu.max():4.1f})  {[r['k'] for r in rows]}")
+        label = f"{planner} {json.dumps(settings)}" if settings else planner
+        print(f"{label:<52}{returns.mean():>12.2f}{np.mean([r['model'] for r in rows]):>8.2f}"
+              f"{wall.mean():>8.1f} ({wall.max():4.1f}){cpu.mean():>8.1f} ({cpu.max():4.1f})")
+        print(f"{'':<4}K per layout: {[r['k'] for r in rows]}")
         print(f"{'':<4}returns per layout: {np.round(returns, 2).tolist()}")
-        if straight is None:
-            straight = returns
+        if reference is None:
+            reference = returns
         else:
-            print(f"{'':<4}minus the straight line: {np.round(returns - straight, 2).tolist()}")
+            print(f"{'':<4}minus the first: {np.round(returns - reference, 2).tolist()}")
 
 
 if __name__ == "__main__":

@@ -65,11 +65,12 @@ process. A second planner seed in the same process is refused by ``plan_path_3d`
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -206,19 +207,22 @@ def point_model(world: Any, points_m: np.ndarray, *, mean_channel: bool = False)
     costs a quadrature per call: the hover-point search ranks many points with it.
     """
     from planners.service import step_model
-    from swiptopt.continuous import coverage_at, propulsion_energy_j
 
-    points = np.asarray(points_m, dtype=float).reshape(-1, 3)
+    cover, _, propulsion_j = _step_functions()
+    points = np.ascontiguousarray(np.asarray(points_m, dtype=float).reshape(-1, 3))
     m = len(points)
+    n = int(world.n_nodes)
     nodes, snr, pav, counts = [], [], [], np.zeros(m, dtype=np.int64)
     hover_j = np.empty(m)
+    scratch = (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n))
+    still = np.zeros(3)
     for c, p in enumerate(points):
-        covered, snr_c, pav_c = coverage_at(world, p)
-        nodes.append(np.asarray(covered, dtype=np.int64))
-        snr.append(np.asarray(snr_c, dtype=float))
-        pav.append(np.asarray(pav_c, dtype=float))
-        counts[c] = len(nodes[-1])
-        hover_j[c] = propulsion_energy_j(world, p, np.zeros(3))
+        count = cover(world.world, world.nodes_m, p, *scratch)
+        nodes.append(scratch[0][:count].copy())
+        snr.append(scratch[1][:count].copy())
+        pav.append(scratch[2][:count].copy())
+        counts[c] = count
+        hover_j[c] = propulsion_j(world.world, world.params, float(p[2]), still, 0.0)
     cov_ptr = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(counts, out=cov_ptr[1:])
     params = np.asarray(world.params, dtype=float)
@@ -245,6 +249,18 @@ def point_model(world: Any, points_m: np.ndarray, *, mean_channel: bool = False)
         normal_rows=int(world.params[K.P_NORMAL_ROWS]),
     )
     return step_model(tables)
+
+
+@functools.lru_cache(maxsize=1)
+def _step_functions() -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]]:
+    """:mod:`swiptopt.continuous`'s ``cover``, ``command`` and ``propulsion_j``: the env's own
+    compiled functions when numba is installed, else the Python originals."""
+    from swiptopt import continuous as C
+    from swiptopt.jit import numba_available
+
+    if numba_available():
+        return C.compiled("cover"), C.compiled("command"), C.compiled("propulsion_j")
+    return C.cover, C.command, C.propulsion_j
 
 
 def hover_values(world: Any, points_m: np.ndarray, group: np.ndarray) -> np.ndarray:
@@ -345,7 +361,7 @@ class _Follower:
         self.hovered = 0  # hover steps of the planned dwell spent at the current stop
         self.lingered = 0  # hover steps beyond it
         self.end_phase = False
-        self.last: tuple[np.ndarray, np.ndarray] | None = None  # (position, target) of the last move
+        self.last: tuple[np.ndarray, int] | None = None  # (position, waypoint index) of the last move
         self.given_up: list[int] = []  # stops (indices into order) given up: a move made no progress
         self.skipped: list[int] = []  # stops skipped: their nodes needed nothing more
         self.cut: list[int] = []  # stops whose dwell was cut short: their nodes needed nothing more
@@ -408,11 +424,11 @@ class _Follower:
             if self.waypoints is not None:
                 if self.waypoint < len(self.waypoints):
                     target = self.waypoints[self.waypoint]
-                    if np.linalg.norm(target - position) <= ARRIVAL_TOLERANCE_M:
+                    if math.dist(target, position) <= ARRIVAL_TOLERANCE_M:
                         self.waypoint += 1
                         continue
-                    if self.last is not None and np.array_equal(self.last[1], target) and (
-                        np.linalg.norm(position - self.last[0]) < NO_PROGRESS_M
+                    if self.last is not None and self.last[1] == self.waypoint and (
+                        math.dist(position, self.last[0]) < NO_PROGRESS_M
                     ):
                         # the last move towards this waypoint was stopped by an obstacle: give up
                         if self.target_stop >= 0:
@@ -420,7 +436,7 @@ class _Follower:
                         self.excluded.add(self.target)
                         self.waypoints, self.site, self.last = None, None, None
                         continue
-                    self.last = (position.copy(), target)
+                    self.last = (position.copy(), self.waypoint)
                     return np.asarray(action_towards(position, target, self.max_step_m), dtype=np.float32)
                 # arrived: the arrival step has served the site
                 self.site, self.stop, self.waypoints, self.last = self.target, self.target_stop, None, None
@@ -576,6 +592,7 @@ class _ContinuousTourPlanner:
         *,
         k: int | None = None,
         k_max: int = 8,
+        k_patience: int | None = None,
         clearance_m: float = 1.0,
         search_evaluations: int = 120,
         prune: bool = True,
@@ -588,6 +605,7 @@ class _ContinuousTourPlanner:
             raise ConfigError(f"seed = {seed!r} must be at most {MAX_SEED} (OMPL's seed is seed + 1 < 2**32)", "seed")
         self.k = _integer("k", k, low=1, optional=True)
         self.k_max = _integer("k_max", k_max, low=1)
+        self.k_patience = _integer("k_patience", k_patience, low=1, optional=True)
         self.clearance_m = _real("clearance_m", clearance_m, unit="m")
         self.search_evaluations = _integer("search_evaluations", search_evaluations, low=0)
         if not isinstance(prune, bool):
@@ -642,10 +660,18 @@ class _ContinuousTourPlanner:
         from sklearn.cluster import KMeans
 
         seed = int(np.random.default_rng(self.seed).integers(2**31 - 1))  # as kmeans_hover_points
-        ks = [min(self.k, coverable.size)] if self.k is not None else range(1, min(self.k_max, coverable.size) + 1)
+        top = min(self.k_max, coverable.size)
+        if self.k is not None:
+            ks: range | list[int] = [min(self.k, coverable.size)]
+        elif self.k_patience is None:
+            ks = range(1, top + 1)
+        else:
+            ks = range(top, 0, -1)
         best: ContinuousPlan | None = None
         candidates: dict[int, float] = {}
         for k in ks:
+            if self.k_patience is not None and best is not None and best.k - k > self.k_patience:
+                break  # k_patience K's in a row earned less than the best
             labels = KMeans(n_clusters=k, n_init=4, random_state=seed).fit(world.nodes_m[coverable]).labels_
             groups = [coverable[labels == g] for g in range(k)]
             points = np.stack([self._hover_point(world, scenario, g) for g in groups])
@@ -853,8 +879,7 @@ class _ContinuousTourPlanner:
         run; the run that finds every position known is the answer. Each run is exact up to
         the first position the one before it lacked, so the runs end.
         """
-        from swiptopt.continuous import propulsion_energy_j, velocity_of
-
+        _, command, propulsion_j = _step_functions()
         p = world.params
         steps = int(p[K.P_STEPS])
         move_weight = float(p[K.P_LAMBDA] / p[K.P_MOVE_REF])
@@ -871,17 +896,21 @@ class _ContinuousTourPlanner:
             actions = np.empty((steps, 3), dtype=np.float32)
             positions[0] = world.start_m
             total, ran, missing = 0.0, steps, []
+            action, unit = np.empty(3), np.empty(3)
             for t in range(steps):
                 actions[t] = follower.action(positions[t], data_left, room_left, t)
-                unit = velocity_of(actions[t], 1.0)
-                total -= move_weight * (propulsion_energy_j(world, positions[t], unit * world.speed_mps) + hotel_j)
-                # the env's arithmetic: the unit command times the step's reach
+                # the env's step: the command, its propulsion from the depth it starts at, the move
+                action[:] = actions[t]
+                norm = command(action, world.world, unit)
+                total -= move_weight * (propulsion_j(world.world, p, float(positions[t, 2]), unit, norm) + hotel_j)
                 positions[t + 1] = positions[t] + unit * world.max_step_m
                 served = self._service.get(positions[t + 1])
                 if served is None:
                     missing.append(positions[t + 1].copy())
                     continue
                 nodes, bits, joules = served
+                if len(nodes) == 0:
+                    continue
                 bits = np.minimum(data_left[nodes], bits)
                 joules = np.minimum(room_left[nodes], joules)
                 data_left[nodes] -= bits
@@ -935,6 +964,7 @@ class OmplTourPlanner(_ContinuousTourPlanner):
         *,
         k: int | None = None,
         k_max: int = 8,
+        k_patience: int | None = None,
         ompl_iterations: int = 150,
         ompl_planner: str = "InformedRRTstar",
         ompl_legs: str = "blocked",
@@ -945,7 +975,7 @@ class OmplTourPlanner(_ContinuousTourPlanner):
         adaptive: bool = True,
         linger_steps: int = 2,
     ):
-        super().__init__(seed, k=k, k_max=k_max, clearance_m=clearance_m, search_evaluations=search_evaluations,
+        super().__init__(seed, k=k, k_max=k_max, k_patience=k_patience, clearance_m=clearance_m, search_evaluations=search_evaluations,
                          prune=prune, tsp_time_limit_s=tsp_time_limit_s, adaptive=adaptive,
                          linger_steps=linger_steps)
         self.ompl_iterations = _integer("ompl_iterations", ompl_iterations, low=1)
