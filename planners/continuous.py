@@ -38,22 +38,42 @@ a tour over them, dwells from the convex program, and an executor of velocity ac
    its dwells are a heuristic (the model return still prices them as the simulator does). Stops beyond the
    episode are dropped; then stops are dropped one at a time while the plan earns no less
    without them (as :class:`planners.reward_tour.RewardKMeansTspPlanner` prunes on the grid).
-5. **K**: every K from 1 to ``k_max`` (or the given ``k``) is planned and the plan whose whole
-   trajectory earns most in the per-step model is kept. The model return of a plan runs the
-   executor itself over model positions (the env's own motion rule, :func:`velocity_of`):
-   each step's movement penalty from :func:`swiptopt.continuous.propulsion_energy_j`, each
-   step's service from where it ends. With a deterministic channel and no link failures this
-   is the env's return for the OMPL tour (a test replays it); with fading it is the
-   expected-rate relaxation of :mod:`planners.service`.
+5. **K**: K groups for K from ``k_max`` down (or the given ``k``) are planned, and the plan
+   whose whole trajectory earns most in the per-step model is kept; the search stops once
+   ``k_patience`` K's in a row earn less than the best so far (``k_patience=None``: every K
+   from 1 to ``k_max``). The model return of a plan runs the executor itself (the same
+   code, its reactions included) over model positions, with the env's own motion and
+   propulsion functions (:func:`swiptopt.continuous.compiled`) and the model's expected
+   service from where each step ends, on the model's own record of what each node still
+   holds. With a deterministic channel and no link failures this is the env's return for
+   the OMPL tour (a test replays it); with fading it is the expected-rate relaxation of
+   :mod:`planners.service`.
 
 **Executor.** Velocity actions from :func:`swiptopt.continuous.action_towards`: along each
-leg, straight at the next waypoint, at most one step's length at a time and never past the
+route, straight at the next waypoint, at most one step's length at a time and never past the
 waypoint (a sub-segment of a valid segment is valid, so the AUV stays on the planned path);
-then the stop's dwell as hover actions (zero velocity); after the last stop it hovers. A
-commanded move that makes no progress (the env stopped it at an obstacle) gives up that stop:
-the executor goes on to the next one, straight from where it is. This is the straight-line
-planner's rule (its legs ignore obstacles and stop where they collide); the OMPL tour's legs
-are free, so it never applies there (``given_up_`` records it if it does).
+at a stop, its dwell as hover actions (zero velocity). Routes join every pair of *sites*
+(the start and the hover points of the plan's K, pruned ones included), so the executor can
+react to the nodes' state, read from the env (``adaptive=True``, the default):
+
+- a stop whose covered nodes all need nothing more (the kernel's "served": data delivered,
+  storage full) when the AUV is about to head for it is skipped: the AUV takes the route to
+  the stop after it (unless that route is blocked, when it keeps the order);
+- a dwell ends as soon as the stop's covered nodes are all served;
+- after its dwell the AUV lingers up to ``linger_steps`` steps while a covered node still
+  holds data (a link failure or a fade kept it), if the rest of the tour still fits the
+  episode (its routes, arrivals and dwells, each dwell no longer than its nodes need in
+  expectation);
+- after the last stop, each step it picks the site where the steps left earn most in the
+  model's expected amounts from the nodes' current state, less the route there and the
+  hovering, and goes there or stays (the steps freed by the rules above end up here).
+
+``adaptive=False`` follows the plan as planned and hovers after the last stop. A commanded
+move that makes no progress (the env stopped it at an obstacle) gives up that stop: the
+executor goes on to the next one, straight from where it is. This is the straight-line
+planner's rule (its legs ignore obstacles and stop where they collide); the OMPL tour's
+routes are free, so it never applies there (``given_up_`` records it if it does;
+``skipped_`` and ``cut_`` record the stops skipped and the dwells cut).
 
 Reproducibility. k-means and the compass search are seeded and counted; the TSP stops on a
 deterministic budget; OMPL draws from one process-wide generator (:mod:`planners.paths3d`):
@@ -351,6 +371,9 @@ class _Follower:
             self.route_ok[np.arange(1, n), np.arange(1, n)] = True  # staying
             used = self.route_steps > 0
             self.cost_per_step = float(self.route_cost[used].sum() / max(1, self.route_steps[used].sum()))
+        # a bound on the state machine's passes in one call: every waypoint, site and stop once
+        self.passes = 8 + 2 * (len(self.sites) + len(self.order)) + max(
+            (len(r.waypoints_m) for r in self.routes.values()), default=0)
         self.next = 0  # index into order of the next planned stop
         self.stop = -1  # index into order of the stop being served (-1: none)
         self.site: int | None = 0  # the site the AUV is at (None: between sites, after giving up)
@@ -420,7 +443,7 @@ class _Follower:
 
         position = np.asarray(position_m, dtype=float)
         steps_left = self.steps - t
-        for _ in range(4 * len(self.sites) + 8):  # each pass moves the state machine on
+        for _ in range(self.passes):  # each pass moves the state machine on
             if self.waypoints is not None:
                 if self.waypoint < len(self.waypoints):
                     target = self.waypoints[self.waypoint]
