@@ -675,6 +675,7 @@ class _ContinuousTourPlanner:
         self._pair_cache: dict[tuple[bytes, bytes], tuple[np.ndarray, str]] = {}
         self._ompl_calls: list[OmplCall] = []
         self._service = _PointService(world)
+        self._hover_cache: dict[tuple[int, ...], np.ndarray] = {}
         from swiptopt.continuous import coverable_nodes
 
         coverable = np.flatnonzero(coverable_nodes(scenario))
@@ -719,7 +720,15 @@ class _ContinuousTourPlanner:
         return dataclasses.replace(plan, positions_m=positions, actions=actions, model_return=model_return)
 
     def _hover_point(self, world: Any, scenario: Any, group: np.ndarray) -> np.ndarray:
-        """The group's hover point: the best start above it, then the compass search."""
+        """The group's hover point: the best start above it, then the compass search. Kept
+        per group: neighbouring K share most groups, hence their hover points and the legs
+        between them (planned once, :meth:`_pair`)."""
+        key = tuple(int(i) for i in group)
+        if key not in self._hover_cache:
+            self._hover_cache[key] = self._search_hover_point(world, scenario, group)
+        return self._hover_cache[key]
+
+    def _search_hover_point(self, world: Any, scenario: Any, group: np.ndarray) -> np.ndarray:
         from planners.paths3d import clearance_of_m
 
         members = world.nodes_m[group]
