@@ -215,7 +215,7 @@ def test_k_patience_searches_down_from_k_max_and_stops_below_the_best():
     """K from k_max down, stopping k_patience K's below the best so far: the K's it tries
     are the full search's, with the same model returns, and it keeps the best of them."""
     env = AuvSwiptContinuousEnv(preset="harbour", layout_seed=4, episode_steps=60, **DETERMINISTIC)
-    full = StraightLinePlanner(0, k_max=4, search_evaluations=20).make_plan(env.world, env.scenario)
+    full = StraightLinePlanner(0, k_max=4, k_patience=None, search_evaluations=20).make_plan(env.world, env.scenario)
     patient = StraightLinePlanner(0, k_max=4, k_patience=1, search_evaluations=20).make_plan(env.world, env.scenario)
     tried = list(patient.candidates)
     assert tried == list(range(4, 4 - len(tried), -1))
@@ -276,7 +276,7 @@ def test_the_executor_skips_served_stops_cuts_served_dwells_and_ends_where_it_st
     at_p = np.linalg.norm(path - p, axis=1) < ARRIVAL_TOLERANCE_M
     assert 1 <= at_p.sum() < 41  # arrived, left before the planned 40 hover steps
 
-    planner = StraightLinePlanner(0)
+    planner = StraightLinePlanner(0, adaptive=True)
     planner._service = _PointService(env.world)
     scored = planner._scored(env.world, plan)
     assert scored.model_return == pytest.approx(env_return, rel=1e-9)
