@@ -346,9 +346,9 @@ class _Follower:
         self.steps = int(world.params[K.P_STEPS])
         self.full_j = np.asarray(world.capacity, dtype=float) * 1e-12  # the kernel's "full" margin
         self.needs_energy = bool(world.params[K.P_GAMMA] < 1.0)
-        self.adaptive = adaptive
-        self.linger_steps = linger_steps
         model = plan.site_model
+        self.adaptive = adaptive and model is not None  # the reactions need the sites' model
+        self.linger_steps = linger_steps
         if model is not None:
             self.cover = [model.cov_node[model.cov_ptr[s] : model.cov_ptr[s + 1]] for s in range(model.n_cells)]
             self.pair_site = model.cell_of_pair()
@@ -356,21 +356,19 @@ class _Follower:
             self.bits, self.joules = model.bits, model.joules
             self.data_weight, self.energy_weight = model.data_weight, model.energy_weight
             self.stay_cost = model.stay_cost
-            p = world.params
-            self.move_per_j = float(p[K.P_LAMBDA] / p[K.P_MOVE_REF])
         # per site of departure: steps, movement penalty and usability of the route to each site
         n = len(self.sites)
+        move_per_j = float(world.params[K.P_LAMBDA] / world.params[K.P_MOVE_REF])
         self.route_steps = np.zeros((n, n), dtype=np.int64)
         self.route_cost = np.zeros((n, n))
         self.route_ok = np.zeros((n, n), dtype=bool)
-        if model is not None:
-            for (i, j), route in self.routes.items():
-                self.route_steps[i, j] = route.steps
-                self.route_cost[i, j] = self.move_per_j * route.energy_j
-                self.route_ok[i, j] = not route.source.startswith("straight (OMPL")
-            self.route_ok[np.arange(1, n), np.arange(1, n)] = True  # staying
-            used = self.route_steps > 0
-            self.cost_per_step = float(self.route_cost[used].sum() / max(1, self.route_steps[used].sum()))
+        for (i, j), route in self.routes.items():
+            self.route_steps[i, j] = route.steps
+            self.route_cost[i, j] = move_per_j * route.energy_j
+            self.route_ok[i, j] = not route.source.startswith("straight (OMPL")
+        self.route_ok[np.arange(1, n), np.arange(1, n)] = True  # staying
+        used = self.route_steps > 0
+        self.cost_per_step = float(self.route_cost[used].sum() / max(1, self.route_steps[used].sum()))
         # a bound on the state machine's passes in one call: every waypoint, site and stop once
         self.passes = 8 + 2 * (len(self.sites) + len(self.order)) + max(
             (len(r.waypoints_m) for r in self.routes.values()), default=0)
