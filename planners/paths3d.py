@@ -33,6 +33,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from swiptopt import auv
+from swiptopt.continuous import _seabed_depth
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Box, Scenario, Sphere
 
@@ -77,6 +78,12 @@ CRASHING_PLANNERS: dict[str, str] = {
 #: roadmap and searches it for a solution in two threads; the solution thread calls the
 #: objective, needing the GIL that the thread running ``solve`` holds while it waits.
 NO_PYTHON_OBJECTIVE_PLANNERS = frozenset({"PRM", "PRMstar"})
+#: These ask the motion validator where a motion stops being valid (OMPL's ``checkMotion``
+#: with ``lastValid``), which a validator written in Python cannot answer through the
+#: bindings (their trampoline drops ``lastValid``): they keep OMPL's own discrete validator,
+#: calling the compiled validity checker state by state. Every other planner gets
+#: :func:`_motion_validator_type`'s validator: one compiled call per motion.
+LAST_VALID_PLANNERS = frozenset({"KPIECE1", "BKPIECE1", "LBKPIECE1"})
 
 CHECK_SPACING_FRACTION = 0.005
 """Motion-check spacing as a fraction of the volume's diagonal (OMPL's default is 0.01)."""
@@ -198,17 +205,41 @@ def _min_energy_per_m(scenario: Scenario) -> float:
     return float(auv.move_energy_j(1.0, v, power, scenario.hotel_power_w))
 
 
-def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, float, float, float], float]:
-    """A scalar twin of :func:`segment_energy_j` for OMPL's hot loop (one segment, no numpy).
+def _segment_energy(ax, ay, az, bx, by, bz, coef):  # type: ignore[no-untyped-def]
+    """A scalar twin of :func:`segment_energy_j` for OMPL's hot loop: one segment, J.
 
-    numpy costs ~15 us per call and the planners ask for hundreds of thousands of motion
-    costs, so this closure repeats the same quadrature on floats. Its constants come from
-    the shared functions: the cubic coefficient of eq. 18 is ``propulsion_power_w(1 m/s)``
-    and the current is the scenario's (linear in depth) at the surface and the bottom. A
-    test pins it to :func:`segment_energy_j`.
+    ``coef`` (:func:`_energy_coefficients`): speed, hotel power, the cubic coefficient of
+    eq. 18, the current at the surface and its gradient with depth. Plain Python on floats,
+    compiled by numba (:func:`_energy_function`): numpy costs ~15 us per call and the
+    planners ask for hundreds of thousands of motion costs. A test pins it to
+    :func:`segment_energy_j`.
     """
-    v = scenario.speed_mps
-    hotel_w = scenario.hotel_power_w
+    dx = bx - ax
+    dy = by - ay
+    dz = bz - az
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d == 0.0:
+        return 0.0
+    v = coef[0]
+    s = v / d
+    ux = dx * s - coef[3]
+    uy = dy * s - coef[4]
+    uz = dz * s - coef[5]
+    cube = 0.0
+    for n in range(3):
+        z = az + _GAUSS_T[n] * dz
+        wx = ux - coef[6] * z
+        wy = uy - coef[7] * z
+        wz = uz - coef[8] * z
+        w2 = wx * wx + wy * wy + wz * wz
+        cube += _GAUSS_W[n] * w2 * math.sqrt(w2)
+    return (coef[2] * cube + coef[1]) * d / v
+
+
+def _energy_coefficients(scenario: Scenario) -> np.ndarray:
+    """The constants of :func:`_segment_energy`, from the shared functions: the cubic
+    coefficient of eq. 18 is ``propulsion_power_w(1 m/s)`` and the current is the
+    scenario's (linear in depth) at the surface and the bottom."""
     k_w = float(
         auv.propulsion_power_w(
             1.0,
@@ -218,41 +249,51 @@ def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, flo
             scenario.propulsion_efficiency,
         )
     )
-    c0x, c0y, c0z = (float(c) for c in scenario.current_at_mps(0.0))
-    c1 = scenario.current_at_mps(scenario.depth_m)
-    gx, gy, gz = (float(c) for c in (c1 - np.array([c0x, c0y, c0z])) / scenario.depth_m)
-    nodes = tuple(zip(_GAUSS_T, _GAUSS_W))
+    top = np.asarray(scenario.current_at_mps(0.0), dtype=float)
+    gradient = (np.asarray(scenario.current_at_mps(scenario.depth_m), dtype=float) - top) / scenario.depth_m
+    return np.array([scenario.speed_mps, scenario.hotel_power_w, k_w, *top, *gradient], dtype=float)
 
-    if gx == gy == gz == 0.0:
 
-        def energy_uniform(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
-            dx, dy, dz = bx - ax, by - ay, bz - az
-            d = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if d == 0.0:
-                return 0.0
-            s = v / d
-            wx, wy, wz = dx * s - c0x, dy * s - c0y, dz * s - c0z
-            w2 = wx * wx + wy * wy + wz * wz
-            return (k_w * w2 * math.sqrt(w2) + hotel_w) * d / v
+@functools.lru_cache(maxsize=1)
+def _energy_function() -> Callable[..., float]:
+    """:func:`_segment_energy`, numba-compiled when numba is installed."""
+    from swiptopt.jit import compile_family, numba_available
 
-        return energy_uniform
+    if not numba_available():
+        return _segment_energy
+    compiled = compile_family({"_segment_energy": _segment_energy})["_segment_energy"]
+    compiled(0.0, 0.0, 0.0, 1.0, 1.0, 1.0, np.ones(9))  # compile now, not in a planner's time limit
+    return compiled
 
-    def energy(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
-        dx, dy, dz = bx - ax, by - ay, bz - az
-        d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if d == 0.0:
-            return 0.0
-        s = v / d
-        ux, uy, uz = dx * s - c0x, dy * s - c0y, dz * s - c0z
-        cube = 0.0
-        for t, weight in nodes:
-            z = az + t * dz
-            wx, wy, wz = ux - gx * z, uy - gy * z, uz - gz * z
-            w2 = wx * wx + wy * wy + wz * wz
-            cube += weight * w2 * math.sqrt(w2)
-        return (k_w * cube + hotel_w) * d / v
 
-    return energy
+def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, float, float, float], float]:
+    """:func:`_segment_energy` for ``scenario``'s AUV and current, as f(ax, ay, az, bx, by, bz)."""
+    energy, coef = _energy_function(), _energy_coefficients(scenario)
+    return lambda ax, ay, az, bx, by, bz: float(energy(ax, ay, az, bx, by, bz, coef))
+
+
+@functools.lru_cache(maxsize=None)
+def _motion_validator_type() -> type:
+    """The OMPL motion validator class (built once, on first use, so ompl loads lazily)."""
+    from ompl import base as ob
+
+    class CompiledMotionValidator(ob.MotionValidator):
+        """OMPL's discrete motion check (the states ``validSegmentCount`` apart, each tested
+        like the validity checker, the end first) as one compiled call per motion
+        (:func:`_segment_free`) instead of one Python call per state: the same answers."""
+
+        def __init__(self, si: Any, space: Any, geom: np.ndarray, heights: np.ndarray):
+            super().__init__(si)
+            self._count = space.validSegmentCount
+            self._segment_free = _checks()[1]
+            self._geom, self._heights = geom, heights
+
+        def checkMotion(self, s1: Any, s2: Any) -> bool:
+            return self._segment_free(
+                s1[0], s1[1], s1[2], s2[0], s2[1], s2[2], 1, self._count(s1, s2), self._geom, self._heights
+            )
+
+    return CompiledMotionValidator
 
 
 @functools.lru_cache(maxsize=None)
@@ -265,7 +306,8 @@ def _energy_objective_type() -> type:
 
         def __init__(self, si: Any, scenario: Scenario):
             super().__init__(si)
-            self._segment_j = _segment_energy_fn(scenario)
+            self._segment_j = _energy_function()
+            self._coef = _energy_coefficients(scenario)
             self._floor_j_per_m = _min_energy_per_m(scenario)
             currents = np.stack([scenario.current_at_mps(0.0), scenario.current_at_mps(scenario.depth_m)])
             self._symmetric = not currents.any()
@@ -276,7 +318,7 @@ def _energy_objective_type() -> type:
             return self._zero
 
         def motionCost(self, s1: Any, s2: Any) -> Any:
-            return ob.Cost(self._segment_j(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2]))
+            return ob.Cost(self._segment_j(s1[0], s1[1], s1[2], s2[0], s2[1], s2[2], self._coef))
 
         def motionCostHeuristic(self, s1: Any, s2: Any) -> Any:
             # admissible: no metre of ground track costs less than the floor
@@ -292,47 +334,120 @@ def _energy_objective_type() -> type:
 
 # ------------------------------------------------------------------------- geometry
 
+# The packed geometry the compiled checks read (:meth:`_World.geometry`): the volume's far
+# corner first (where swiptopt.continuous._seabed_depth reads the extent), then the growth,
+# the obstacle counts, and the obstacles (spheres as centre and squared grown radius, boxes
+# as min and max corners).
+G_GROW, G_LIFT, G_HAS_SEABED, G_SPHERES, G_BOXES, G_DATA = 3, 4, 5, 6, 7, 8
 
+
+def _point_free(x, y, z, geom, seabed):  # type: ignore[no-untyped-def]
+    """Whether (x, y, z) lies outside every obstacle grown by ``geom[G_GROW]`` (closed) and
+    above the seabed raised by ``geom[G_LIFT]`` (:meth:`_World.geometry`). Plain Python over
+    numpy arrays, compiled by numba (:func:`_checks`)."""
+    grow = geom[G_GROW]
+    k = G_DATA
+    for _ in range(int(geom[G_SPHERES])):
+        dx = x - geom[k]
+        dy = y - geom[k + 1]
+        dz = z - geom[k + 2]
+        if dx * dx + dy * dy + dz * dz <= geom[k + 3]:
+            return False
+        k += 4
+    grow2 = grow * grow
+    for _ in range(int(geom[G_BOXES])):
+        x0, y0, z0, x1, y1, z1 = geom[k], geom[k + 1], geom[k + 2], geom[k + 3], geom[k + 4], geom[k + 5]
+        k += 6
+        dx = x0 - x if x < x0 else (x - x1 if x > x1 else 0.0)
+        if dx > grow:
+            continue
+        dy = y0 - y if y < y0 else (y - y1 if y > y1 else 0.0)
+        dz = z0 - z if z < z0 else (z - z1 if z > z1 else 0.0)
+        if dx * dx + dy * dy + dz * dz <= grow2:
+            return False
+    if geom[G_HAS_SEABED] == 1.0 and z >= _seabed_depth(geom, seabed, x, y) - geom[G_LIFT]:
+        return False
+    return True
+
+
+def _segment_free(ax, ay, az, bx, by, bz, first, count, geom, seabed):  # type: ignore[no-untyped-def]
+    """Whether the states ``a + (b - a) * (j / count)`` for j = ``first`` .. ``count`` are all
+    free (:func:`_point_free`): OMPL's discrete motion check (``first = 1``: the start is
+    known valid) in one call. The end is tested first, then the others coarse to fine (every
+    2^m-th, then the odd multiples of each smaller power of two), so that a blocked motion
+    is usually rejected after a few tests, as OMPL's bisection order does."""
+    if not _point_free(bx, by, bz, geom, seabed):
+        return False
+    if first == 0 and not _point_free(ax, ay, az, geom, seabed):
+        return False
+    stride = 1
+    while stride * 2 < count:
+        stride *= 2
+    step = stride
+    while stride >= 1:
+        j = stride
+        while j < count:
+            t = j / count
+            if not _point_free(ax + (bx - ax) * t, ay + (by - ay) * t, az + (bz - az) * t, geom, seabed):
+                return False
+            j += step
+        stride //= 2
+        step = 2 * stride
+    return True
+
+
+_CHECKS: dict[str, Callable[..., bool]] = {}
+
+
+def _checks() -> tuple[Callable[..., bool], Callable[..., bool]]:
+    """(:func:`_point_free`, :func:`_segment_free`), compiled by numba when it is installed
+    (against the continuous world's compiled seabed lookup), else the Python originals."""
+    if not _CHECKS:
+        from swiptopt.jit import numba_available
+
+        functions = {"_point_free": _point_free, "_segment_free": _segment_free}
+        if numba_available():
+            from swiptopt import continuous
+            from swiptopt.jit import compile_family
+
+            functions = compile_family(functions, {"_seabed_depth": continuous.compiled("_seabed_depth")})
+            # compile now, with the argument types of every call, not in a planner's time limit
+            functions["_point_free"](0.0, 0.0, 0.0, np.zeros(G_DATA), np.zeros((0, 0)))
+            functions["_segment_free"](0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0, 2, np.zeros(G_DATA), np.zeros((0, 0)))
+        _CHECKS.update(functions)
+    return _CHECKS["_point_free"], _CHECKS["_segment_free"]
+
+
+@dataclass(frozen=True, eq=False)
 class _Seabed:
-    """The scenario's bilinear seabed as per-cell coefficients, for fast scalar lookups."""
+    """A scenario's bilinear seabed: its height map and its depth function."""
 
-    def __init__(self, scenario: Scenario):
-        h = np.asarray(scenario.seabed_height_m, dtype=float)
-        nx, ny = h.shape
-        self.dx = scenario.length_m / (nx - 1)
-        self.dy = scenario.width_m / (ny - 1)
-        self.nx, self.ny = nx, ny
-        gx, gy = np.meshgrid(np.arange(nx) * self.dx, np.arange(ny) * self.dy, indexing="ij")
-        d = scenario.seabed_depth_m(gx, gy)  # depths at the grid nodes, from the shared model
-        a = d[:-1, :-1]
-        b = d[1:, :-1] - a
-        c = d[:-1, 1:] - a
-        e = d[1:, 1:] - d[1:, :-1] - d[:-1, 1:] + a
-        self.cells = [
-            [(float(a[i, j]), float(b[i, j]), float(c[i, j]), float(e[i, j])) for j in range(ny - 1)]
-            for i in range(nx - 1)
-        ]
-        # |grad depth| <= slope inside every cell (bilinear: each partial is bounded by
-        # its edge differences), so a point delta above the seabed is >= delta/sqrt(1+slope^2)
-        # away from it.
-        slope_x = float(np.abs(np.diff(d, axis=0)).max()) / self.dx
-        slope_y = float(np.abs(np.diff(d, axis=1)).max()) / self.dy
-        slope = math.hypot(slope_x, slope_y)
-        self.stretch = math.sqrt(1.0 + slope * slope)
+    heights_m: np.ndarray
+    """(hx, hy) height above the bottom on a regular grid over the area, m."""
+    depth_m: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    """The scenario's own :meth:`Scenario.seabed_depth_m` (vectorised)."""
+    stretch: float
+    """sqrt(1 + slope^2) for a bound on the slope: a point delta above the seabed is at least
+    delta / stretch away from it."""
 
-    def depth_m(self, x: float, y: float) -> float:
-        fx = min(max(x / self.dx, 0.0), self.nx - 1.0)
-        fy = min(max(y / self.dy, 0.0), self.ny - 1.0)
-        i = min(int(fx), self.nx - 2)
-        j = min(int(fy), self.ny - 2)
-        tx, ty = fx - i, fy - j
-        a, b, c, e = self.cells[i][j]
-        return a + b * tx + c * ty + e * tx * ty
+
+def _seabed_of(scenario: Scenario) -> _Seabed | None:
+    if scenario.seabed_height_m is None:
+        return None
+    h = np.asarray(scenario.seabed_height_m, dtype=float)
+    nx, ny = h.shape
+    dx, dy = scenario.length_m / (nx - 1), scenario.width_m / (ny - 1)
+    gx, gy = np.meshgrid(np.arange(nx) * dx, np.arange(ny) * dy, indexing="ij")
+    d = scenario.seabed_depth_m(gx, gy)  # depths at the grid nodes
+    # |grad depth| <= slope inside every cell (bilinear: each partial is bounded by its edge
+    # differences)
+    slope = math.hypot(float(np.abs(np.diff(d, axis=0)).max()) / dx, float(np.abs(np.diff(d, axis=1)).max()) / dy)
+    return _Seabed(np.ascontiguousarray(h), scenario.seabed_depth_m, math.sqrt(1.0 + slope * slope))
 
 
 @dataclass(frozen=True)
 class _World:
-    """Bounds and obstacles in plain floats: what the validity checker needs."""
+    """Bounds, obstacles and seabed: what the validity checks need."""
 
     low: tuple[float, float, float]
     high: tuple[float, float, float]
@@ -350,50 +465,49 @@ class _World:
         ]
         return min(sizes, default=math.inf)
 
-    def distances_m(self, point: Sequence[float]) -> list[tuple[float, str]]:
-        """(lower bound on the distance, name) per obstacle; <= 0 means inside."""
-        x, y, z = point
-        out = []
-        for i, o in enumerate(self.obstacles):
+    def names(self) -> list[str]:
+        """What each column of :meth:`distances_m` measures the distance to."""
+        names = [f"obstacles[{i}] = {o!r}" for i, o in enumerate(self.obstacles)]
+        return names + (["the seabed"] if self.seabed is not None else [])
+
+    def distances_m(self, points_m: np.ndarray) -> np.ndarray:
+        """(m, len(names())) a lower bound on the distance from each point (m, 3) to each
+        obstacle and the seabed, m; <= 0 means inside (or below the seabed)."""
+        p = np.asarray(points_m, dtype=float).reshape(-1, 3)
+        columns = []
+        for o in self.obstacles:
             if isinstance(o, Sphere):
-                dist = math.dist(point, o.center_m) - o.radius_m
-            else:
-                outside = [max(l - p, 0.0, p - h) for p, l, h in zip(point, o.min_m, o.max_m)]
-                if any(outside):
-                    dist = math.hypot(*outside)
-                else:
-                    dist = -min(min(p - l, h - p) for p, l, h in zip(point, o.min_m, o.max_m))
-            out.append((dist, f"obstacles[{i}] = {o!r}"))
+                columns.append(np.linalg.norm(p - np.asarray(o.center_m), axis=1) - o.radius_m)
+                continue
+            lo, hi = np.asarray(o.min_m, dtype=float), np.asarray(o.max_m, dtype=float)
+            outside = np.maximum(np.maximum(lo - p, p - hi), 0.0)
+            inside = np.minimum(p - lo, hi - p).min(axis=1)
+            columns.append(np.where(outside.any(axis=1), np.linalg.norm(outside, axis=1), -inside))
         if self.seabed is not None:
-            out.append(((self.seabed.depth_m(x, y) - z) / self.seabed.stretch, "the seabed"))
-        return out
+            columns.append((self.seabed.depth_m(p[:, 0], p[:, 1]) - p[:, 2]) / self.seabed.stretch)
+        return np.stack(columns, axis=1) if columns else np.zeros((len(p), 0))
+
+    def geometry(self, grow_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The packed arrays (geom, seabed heights) of the compiled checks, for the obstacles
+        grown by ``grow_m`` and the seabed raised by ``grow_m`` times its stretch."""
+        head = [*self.high, grow_m, 0.0, 0.0, 0.0, 0.0]
+        spheres = [(*map(float, o.center_m), (o.radius_m + grow_m) ** 2) for o in self.obstacles if isinstance(o, Sphere)]
+        boxes = [(*map(float, o.min_m), *map(float, o.max_m)) for o in self.obstacles if isinstance(o, Box)]
+        head[G_SPHERES], head[G_BOXES] = float(len(spheres)), float(len(boxes))
+        heights = np.zeros((0, 0))
+        if self.seabed is not None:
+            head[G_LIFT], head[G_HAS_SEABED] = grow_m * self.seabed.stretch, 1.0
+            heights = self.seabed.heights_m
+        geom = np.array(head + [v for s in spheres for v in s] + [v for b in boxes for v in b], dtype=float)
+        return geom, heights
 
     def free_fn(self, grow_m: float) -> Callable[[float, float, float], bool]:
         """A fast test of one point against the obstacles grown by ``grow_m`` (closed)."""
-        spheres = tuple(
-            (*map(float, o.center_m), (o.radius_m + grow_m) ** 2) for o in self.obstacles if isinstance(o, Sphere)
-        )
-        boxes = tuple((*map(float, o.min_m), *map(float, o.max_m)) for o in self.obstacles if isinstance(o, Box))
-        grow2 = grow_m * grow_m
-        seabed = self.seabed
-        lift = 0.0 if seabed is None else grow_m * seabed.stretch
+        point_free, _ = _checks()
+        geom, heights = self.geometry(grow_m)
 
         def free(x: float, y: float, z: float) -> bool:
-            for cx, cy, cz, r2 in spheres:
-                dx, dy, dz = x - cx, y - cy, z - cz
-                if dx * dx + dy * dy + dz * dz <= r2:
-                    return False
-            for x0, y0, z0, x1, y1, z1 in boxes:
-                dx = x0 - x if x < x0 else (x - x1 if x > x1 else 0.0)
-                if dx > grow_m:
-                    continue
-                dy = y0 - y if y < y0 else (y - y1 if y > y1 else 0.0)
-                dz = z0 - z if z < z0 else (z - z1 if z > z1 else 0.0)
-                if dx * dx + dy * dy + dz * dz <= grow2:
-                    return False
-            if seabed is not None and z >= seabed.depth_m(x, y) - lift:
-                return False
-            return True
+            return bool(point_free(float(x), float(y), float(z), geom, heights))
 
         return free
 
@@ -403,8 +517,7 @@ def _world_from(scenario_or_obstacles: Any, bounds: Any) -> tuple[_World, Scenar
         sc = scenario_or_obstacles
         if bounds is not None:
             raise ConfigError("bounds must be None with a Scenario: its volume gives the bounds", "bounds")
-        seabed = None if sc.seabed_height_m is None else _Seabed(sc)
-        return _World((0.0, 0.0, 0.0), (sc.length_m, sc.width_m, sc.depth_m), tuple(sc.obstacles), seabed), sc
+        return _World((0.0, 0.0, 0.0), (sc.length_m, sc.width_m, sc.depth_m), tuple(sc.obstacles), _seabed_of(sc)), sc
     try:
         obstacles = tuple(scenario_or_obstacles)
     except TypeError:
@@ -440,7 +553,7 @@ def _checked_point(name: str, point: Any, world: _World, clearance_m: float) -> 
     xyz = (float(p[0]), float(p[1]), float(p[2]))
     if not all(l <= v <= h for v, l, h in zip(xyz, world.low, world.high)):
         raise ConfigError(f"{name} = {xyz} lies outside the bounds {world.low} .. {world.high}", name)
-    for dist, what in world.distances_m(xyz):
+    for dist, what in zip(world.distances_m(p)[0], world.names()):
         if dist <= clearance_m:
             where = "inside" if dist <= 0 else f"within clearance_m = {clearance_m:g} m of"
             raise ConfigError(f"{name} = {xyz} lies {where} {what}", name)
@@ -453,8 +566,8 @@ def _check_spacing_m(world: _World, ends: dict[str, tuple[float, float, float]],
     spacing = min(default, SMALLEST_OBSTACLE_SHARE * world.smallest_obstacle_m())
     floor = MIN_SPACING_SHARE * default
     for name, point in ends.items():
-        for dist, what in world.distances_m(point):
-            room = dist - clearance_m  # > 0 after _checked_point
+        for dist, what in zip(world.distances_m(np.asarray(point))[0], world.names()):
+            room = float(dist) - clearance_m  # > 0 after _checked_point
             if spacing / 2.0 >= room:
                 if 1.8 * room < floor:
                     raise ConfigError(
@@ -474,11 +587,12 @@ def clearance_of_m(points_m: Any, scenario: Scenario, *, faces: bool = True) -> 
     world, _ = _world_from(scenario, None)
     p = np.asarray(points_m, dtype=float)
     flat = p.reshape(-1, 3)
-    out = np.empty(len(flat))
-    for n, point in enumerate(flat):
-        xyz = (float(point[0]), float(point[1]), float(point[2]))
-        walls = min(min(v - lo, hi - v) for v, lo, hi in zip(xyz, world.low, world.high)) if faces else math.inf
-        out[n] = min([walls] + [d for d, _ in world.distances_m(xyz)])
+    out = np.full(len(flat), math.inf)
+    if faces:
+        out = np.minimum(flat - np.asarray(world.low), np.asarray(world.high) - flat).min(axis=1)
+    distances = world.distances_m(flat)
+    if distances.shape[1]:
+        out = np.minimum(out, distances.min(axis=1))
     return out.reshape(p.shape[:-1])
 
 
@@ -496,14 +610,14 @@ def segments_free(starts_m: Any, ends_m: Any, scenario: Scenario, *, clearance_m
     a = np.asarray(starts_m, dtype=float).reshape(-1, 3)
     b = np.asarray(ends_m, dtype=float).reshape(-1, 3)
     spacing = min(CHECK_SPACING_FRACTION * world.diagonal_m, SMALLEST_OBSTACLE_SHARE * world.smallest_obstacle_m())
-    free = world.free_fn(clearance_m + spacing / 2.0)
+    _, segment_free = _checks()
+    geom, heights = world.geometry(clearance_m + spacing / 2.0)
     low, high = np.asarray(world.low), np.asarray(world.high)
+    inside = np.all((a >= low) & (a <= high) & (b >= low) & (b <= high), axis=1)
+    samples = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / spacing)).astype(np.int64)
     out = np.zeros(len(a), dtype=bool)
-    for n, (p, q) in enumerate(zip(a, b)):
-        if not (np.all(p >= low) and np.all(p <= high) and np.all(q >= low) and np.all(q <= high)):
-            continue
-        samples = max(1, math.ceil(float(np.linalg.norm(q - p)) / spacing))
-        out[n] = all(free(*(p + (q - p) * (i / samples))) for i in range(samples + 1))
+    for n in np.flatnonzero(inside):
+        out[n] = segment_free(*map(float, a[n]), *map(float, b[n]), 0, int(samples[n]), geom, heights)
     return out
 
 
@@ -716,13 +830,18 @@ def plan_path_3d(
     space.setLongestValidSegmentFraction(spacing / space.getMaximumExtent())
 
     setup = og.SimpleSetup(space)
-    free = world.free_fn(clearance_m + spacing / 2.0)
+    point_free, _ = _checks()
+    geom, heights = world.geometry(clearance_m + spacing / 2.0)
 
     def is_valid(state: Any) -> bool:
-        return free(state[0], state[1], state[2])
+        return point_free(state[0], state[1], state[2], geom, heights)
 
     setup.setStateValidityChecker(is_valid)
     si = setup.getSpaceInformation()
+    validator = None  # kept alive while OMPL uses it
+    if name not in LAST_VALID_PLANNERS:
+        validator = _motion_validator_type()(si, space, geom, heights)
+        si.setMotionValidator(validator)
     start_state, goal_state = space.allocState(), space.allocState()
     for axis in range(3):
         start_state[axis] = a[axis]

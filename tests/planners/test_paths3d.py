@@ -179,6 +179,41 @@ def test_fast_validity_check_agrees_with_the_scenario():
     np.testing.assert_array_equal(fast, harbour.is_blocked(points))
 
 
+def test_the_compiled_motion_validator_answers_as_ompls_own():
+    """The validator plan_path_3d installs (one compiled call per motion) accepts exactly the
+    motions that OMPL's default discrete validator accepts with the same state checker."""
+    from ompl import base as ob
+
+    harbour = Scenario.preset("harbour")
+    world, _ = paths3d._world_from(harbour, None)
+    grow = 1.7
+    free = world.free_fn(grow)
+    geom, heights = world.geometry(grow)
+    space = ob.RealVectorStateSpace(3)
+    bounds = ob.RealVectorBounds(3)
+    for axis, high in enumerate(harbour.extent_m):
+        bounds.setLow(axis, 0.0)
+        bounds.setHigh(axis, float(high))
+    space.setBounds(bounds)
+    space.setLongestValidSegmentFraction(0.004)
+    si = ob.SpaceInformation(space)
+    si.setStateValidityChecker(lambda s: free(s[0], s[1], s[2]))
+    si.setup()
+    compiled = paths3d._motion_validator_type()(si, space, geom, heights)
+    points = np.random.default_rng(5).uniform(0.0, 1.0, (3000, 3)) * harbour.extent_m
+    points = points[[free(*p) for p in points]]  # motions start from valid states
+    a, b = space.allocState(), space.allocState()
+    agree, accepted = [], 0
+    for p, q in zip(points[0::2], points[1::2]):
+        for axis in range(3):
+            a[axis], b[axis] = float(p[axis]), float(q[axis])
+        theirs = si.checkMotion(a, b)
+        agree.append(compiled.checkMotion(a, b) == theirs)
+        accepted += theirs
+    assert all(agree)
+    assert 0.05 * len(agree) < accepted < 0.95 * len(agree)  # both answers are common
+
+
 CURRENT = Scenario(
     length_m=200.0,
     width_m=100.0,
