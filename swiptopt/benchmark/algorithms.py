@@ -390,7 +390,10 @@ _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps
 _HOVER_POINTS = {
     "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes, hi_doc="n_nodes",
                  doc="hover points (default: every K up to k_max tried, the best tour kept)"),
-    "k_max": Setting(default=8, kind="int", lo=1, hi=100, quick=4, doc="largest K tried"),
+    "k_max": Setting(default=20, kind="int", lo=1, hi=100, quick=4, doc="largest K tried"),
+    "k_patience": Setting(default=2, kind="int", lo=1, hi=100, optional=True, quick=1,
+                          doc="K is searched from k_max down and stops after this many K's worse than the best "
+                              "(none: every K)"),
     "clearance_m": Setting(default=1.0, lo=0, lo_open=True, hi=100, unit="m",
                            doc="distance legs and hover points keep from obstacles and the seabed"),
     "search_evaluations": Setting(default=120, kind="int", lo=0, hi=10**6, quick=20,
@@ -398,9 +401,15 @@ _HOVER_POINTS = {
     "prune": Setting(default=True, kind="bool", doc="drop stops that do not pay for their detour"),
     "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
                                 doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
+    "linger_steps": Setting(default=2, kind="int", lo=0, hi=_STEPS,
+                            doc="extra hover steps while covered nodes hold data (adaptive executor)"),
 }
+_ADAPTIVE = "adaptive"
+_ADAPTIVE_DOC = ("the executor skips stops already served, cuts dwells when its nodes are served and "
+                 "lingers while they hold data")
 _OMPL_TOUR = {
     **_HOVER_POINTS,
+    _ADAPTIVE: Setting(default=True, kind="bool", doc=_ADAPTIVE_DOC),
     "ompl_iterations": Setting(default=150, kind="int", lo=1, hi=10**7, quick=50,
                                doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
     "ompl_planner": Setting(default="InformedRRTstar", kind="str",
@@ -478,7 +487,9 @@ ALGORITHMS: dict[str, Algorithm] = {
         Algorithm("ompl_tour", "OMPL tour", "planner", _OMPL_TOUR,
                   _planner("OmplTourPlanner", seeded=True, module="planners.continuous"),
                   worlds=(CONTINUOUS,), uses_ompl=lambda settings: True),
-        Algorithm("straight_line", "straight line", "planner", dict(_HOVER_POINTS),
+        Algorithm("straight_line", "straight line", "planner",
+                  {**_HOVER_POINTS, _ADAPTIVE: Setting(default=False, kind="bool", doc=_ADAPTIVE_DOC + (
+                      " (off by default: its reactions would trust legs through obstacles)"))},
                   _planner("StraightLinePlanner", seeded=True, module="planners.continuous"), worlds=(CONTINUOUS,)),
         Algorithm(
             "milp",
