@@ -1,9 +1,19 @@
 """3D paths for the AUV: OMPL geometric planning around boxes, spheres and the seabed (SPEC 6).
 
-The idiom stays visible: a 3D ``RealVectorStateSpace`` over the volume, a plain Python
-validity checker, ``SimpleSetup`` -> objective -> planner -> ``solve(time limit)`` ->
-simplify, and a :class:`PathResult` that reports what OMPL actually delivered (exact,
-approximate or nothing) instead of assuming success.
+The idiom stays visible: a 3D ``RealVectorStateSpace`` over the volume, a Python validity
+checker, ``SimpleSetup`` -> objective -> planner -> ``solve(time limit)`` -> simplify, and a
+:class:`PathResult` that reports what OMPL actually delivered (exact, approximate or
+nothing) instead of assuming success.
+
+Speed. OMPL calls back into Python for every state it checks, every motion and every motion
+cost. The checks (:func:`_point_free`, :func:`_segment_free`) and the energy
+(:func:`_segment_energy`) are plain Python that numba compiles (reusing the continuous
+world's compiled seabed lookup), and a motion is checked by one compiled call
+(:func:`_motion_validator_type`: the states OMPL's own discrete validator would test, the
+same answers) instead of one Python call per state. On the harbour's 12 layouts the OMPL
+tour at its former settings (k_max 8, every K) made the same plans in 2.2 s of CPU a layout
+instead of 5.2 s (the slowest layout 2.5 s instead of 11.8 s; provisional, on a shared
+2-core machine). Without numba the same functions run as Python.
 
 Motion checking. OMPL checks a straight motion by testing states spaced at most ``g``
 apart along it (the space's longest valid segment). On its own that can cut a corner or
