@@ -931,7 +931,7 @@ class _ContinuousTourPlanner:
                 actions[t] = follower.action(positions[t], data_left, room_left, t)
                 # the env's step: the command, its propulsion from the depth it starts at, the move
                 action[:] = actions[t]
-                norm = command(action, world.world, unit)
+                norm = command(action, unit)
                 total -= move_weight * (propulsion_j(world.world, p, float(positions[t, 2]), unit, norm) + hotel_j)
                 positions[t + 1] = positions[t] + unit * world.max_step_m
                 served = self._service.get(positions[t + 1])

@@ -206,7 +206,7 @@ def with_layout(world: World, scenario: Scenario) -> World:
 # ------------------------------------------------------------------ the compiled functions
 
 
-def command(action, world, out):  # type: ignore[no-untyped-def]
+def command(action, out):  # type: ignore[no-untyped-def]
     """The move an action commands, written to ``out`` (3,) as a fraction of the step's
     reach: each component clipped to [-1, 1], the vector scaled down to norm 1 if longer.
     Returns its norm (0: hover)."""
@@ -397,8 +397,21 @@ def step(  # type: ignore[no-untyped-def]
     first contact -> covered nodes from the new position -> :func:`swiptopt.kernel.serve`
     (serving with the step's draws, idle drain, reward parts, t += 1, episode end).
     """
+    code, blocked, _ = advance(
+        action, uniforms, normals, world, boxes, spheres, seabed, nodes_m, cov_node, cov_snr, cov_pav,
+        capacity, fail_prob, params, pos, where, data_left, energy, delivered, collected, acc, parts,
+    )
+    return code, blocked
+
+
+def advance(  # type: ignore[no-untyped-def]
+    action, uniforms, normals, world, boxes, spheres, seabed, nodes_m, cov_node, cov_snr, cov_pav,
+    capacity, fail_prob, params, pos, where, data_left, energy, delivered, collected, acc, parts,
+):
+    """:func:`step`, also returning how many nodes the new position covers (their indices
+    first in ``cov_node``): (code, blocked, count)."""
     unit = np.empty(3)
-    norm = command(action, world, unit)
+    norm = command(action, unit)
     energy_j = propulsion_j(world, params, pos[2], unit, norm)
     blocked = False
     if norm > 0.0:
@@ -408,7 +421,7 @@ def step(  # type: ignore[no-untyped-def]
         energy_j, 0, count, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params, where,
         data_left, energy, delivered, collected, acc, parts,
     )
-    return code, blocked
+    return code, blocked, count
 
 
 def step_observe(  # type: ignore[no-untyped-def]
@@ -418,12 +431,12 @@ def step_observe(  # type: ignore[no-untyped-def]
 ):
     """:func:`step`, then the vector observation into ``out`` and whether the draw buffers
     need a refill; returns (code, blocked, refill), in one compiled call."""
-    code, blocked = step(
+    code, blocked, count = advance(
         action, uniforms, normals, world, boxes, spheres, seabed, nodes_m, cov_node, cov_snr, cov_pav,
         capacity, fail_prob, params, pos, where, data_left, energy, delivered, collected, acc, parts,
     )
-    observe(world, nodes_m, pos, where, cov_node, cov_snr, cov_pav, data_left, energy, data0, capacity, params,
-            nodes_norm, out)
+    # the step's own coverage: the nodes served this step are those the observation flags
+    observe_covered(world, pos, where, count, cov_node, data_left, energy, data0, capacity, params, nodes_norm, out)
     refill = needs_refill(where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS]))
     return code, blocked, refill
 
@@ -434,6 +447,13 @@ def observe(  # type: ignore[no-untyped-def]
     """The grid's vector observation (:func:`swiptopt.kernel.observation_at`) at the AUV's
     actual position, into ``out``."""
     count = cover(world, nodes_m, pos, cov_node, cov_snr, cov_pav)
+    observe_covered(world, pos, where, count, cov_node, data_left, energy, data0, capacity, params, nodes_norm, out)
+
+
+def observe_covered(  # type: ignore[no-untyped-def]
+    world, pos, where, count, cov_node, data_left, energy, data0, capacity, params, nodes_norm, out
+):
+    """:func:`observe` given the covered nodes ``cov_node[:count]``."""
     auv_norm = np.empty(3)
     for axis in range(3):
         auv_norm[axis] = pos[axis] / world[Q_EXT_X + axis]
@@ -441,8 +461,8 @@ def observe(  # type: ignore[no-untyped-def]
                    nodes_norm, out)
 
 
-_FUNCTIONS = ("command", "propulsion_j", "_seabed_depth", "first_contact", "move", "cover", "step", "observe",
-              "step_observe")
+_FUNCTIONS = ("command", "propulsion_j", "_seabed_depth", "first_contact", "move", "cover", "advance", "step",
+              "observe_covered", "observe", "step_observe")
 _COMPILED: dict[str, Callable] = {}
 
 
@@ -465,7 +485,7 @@ def velocity_of(action: np.ndarray, speed_mps: float) -> np.ndarray:
     """The ground velocity (3,) m/s an action commands: ``speed_mps * a / max(1, |a|)``,
     each component of ``a`` clipped to [-1, 1] first."""
     unit = np.empty(3)
-    command(np.asarray(action, dtype=float), None, unit)
+    command(np.asarray(action, dtype=float), unit)
     return unit * speed_mps
 
 
