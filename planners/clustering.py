@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from swiptopt import kernel as K
+from swiptopt.acoustics import db_to_linear
 from swiptopt.coverage import slant_distances_m
 from swiptopt.errors import ConfigError
 from swiptopt.link import link_budget
@@ -137,4 +138,4 @@ def hover_link(
     d = slant_distances_m(scenario.cell_centers_m[cells], scenario.layout.positions_m)
     budget = link_budget(scenario, d)
     mask = covered[cells].toarray()
-    return np.where(mask, 10.0 ** (budget.snr_db / 10.0), 0.0), np.where(mask, budget.available_power_w, 0.0)
+    return np.where(mask, db_to_linear(budget.snr_db), 0.0), np.where(mask, budget.available_power_w, 0.0)

@@ -42,7 +42,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from swiptopt import auv
+from swiptopt import auv, fpmath
 from swiptopt.continuous import _seabed_depth
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Box, Scenario, Sphere
@@ -186,7 +186,7 @@ def segment_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> np.ndarray:
         scenario.water_density_kg_m3,
         scenario.propulsion_efficiency,
     )
-    return auv.move_energy_j(dist, scenario.speed_mps, power_w @ np.asarray(_GAUSS_W), scenario.hotel_power_w)
+    return auv.move_energy_j(dist, scenario.speed_mps, fpmath.dot(power_w, np.asarray(_GAUSS_W)), scenario.hotel_power_w)
 
 
 def path_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> float:
@@ -200,9 +200,9 @@ def _min_energy_per_m(scenario: Scenario) -> float:
     c_top = scenario.current_at_mps(0.0)
     c_bottom = scenario.current_at_mps(scenario.depth_m)
     span = c_bottom - c_top
-    t = 0.0 if not span.any() else float(np.clip(-(c_top @ span) / (span @ span), 0.0, 1.0))
-    slowest = float(np.linalg.norm(c_top + t * span))  # |c| is convex in depth
-    fastest = float(max(np.linalg.norm(c_top), np.linalg.norm(c_bottom)))
+    t = 0.0 if not span.any() else float(np.clip(-fpmath.dot(c_top, span) / fpmath.dot(span, span), 0.0, 1.0))
+    slowest = math.sqrt(fpmath.dot(c_top + t * span, c_top + t * span))  # |c| is convex in depth
+    fastest = math.sqrt(max(fpmath.dot(c_top, c_top), fpmath.dot(c_bottom, c_bottom)))
     v = scenario.speed_mps
     water_min = max(slowest - v, v - fastest, 0.0)
     power = auv.propulsion_power_w(

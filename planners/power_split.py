@@ -74,6 +74,8 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from swiptopt import fpmath
+from swiptopt.acoustics import db_to_linear
 from swiptopt.coverage import covered_nodes, slant_distances_m
 from swiptopt.errors import ConfigError
 from swiptopt.link import auv_power, link_budget, reward_references
@@ -214,7 +216,7 @@ def split_value_rate(
     alpha = _array("split_ratio", split_ratio, hi=1.0)
     gamma = _array("snr_linear", snr_linear)
     p_av = _array("available_power_w", available_power_w)
-    bits_per_s = bw * np.log1p(alpha * gamma) / LN2
+    bits_per_s = bw * fpmath.log1p(alpha * gamma) / LN2
     joules_per_s = eta * (1.0 - alpha) * p_av
     return gw * bits_per_s / d_ref + (1.0 - gw) * joules_per_s / e_ref
 
@@ -544,7 +546,7 @@ class DwellSplitProblem:
         g = gamma[k_of, i_of]
         c = np.maximum(g, 1.0)
         served = self._served_nodes
-        pr["log_c"].value = np.log(c)
+        pr["log_c"].value = fpmath.log(c)
         pr["inv_c"].value = 1.0 / c
         pr["snr_over_c"].value = g / c
         pr["harvest_rate"].value = eta * p_av[k_of, i_of] / e_ref
@@ -552,7 +554,7 @@ class DwellSplitProblem:
         # that no variable's range dwarfs what it can reach (exact, and better conditioned)
         longest = _longest_dwell_s(budgets)
         reach_info = np.zeros(shape[1])
-        np.maximum.at(reach_info, i_of, np.log1p(g) * longest)
+        np.maximum.at(reach_info, i_of, fpmath.log1p(g) * longest)
         reach_room = np.zeros(shape[1])
         np.maximum.at(reach_room, i_of, eta * p_av[k_of, i_of] / e_ref * longest)
         pr["info_cap"].value = np.minimum(data * LN2 / bw, reach_info)[served] / scale
@@ -561,7 +563,7 @@ class DwellSplitProblem:
             pr["min_energy"].value = min_energy[served] / e_ref / scale
         pr["w_info"].value = gw * bw / (LN2 * d_ref)
         pr["w_energy"].value = 1.0 - gw
-        best_rate = float(np.max(pr["w_info"].value * np.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value))
+        best_rate = float(np.max(pr["w_info"].value * fpmath.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value))
         pr["tie_break"].value = DWELL_TIE_BREAK * best_rate
         for name, value in budgets.items():
             pr[name].value = value / scale if name in ("time_budget", "energy_budget") else value
@@ -617,7 +619,7 @@ class DwellSplitProblem:
         node_row = np.searchsorted(served, i_of)
         n_hover, n_served = self.n_hover, served.size
         scale = _time_scale(budgets)
-        info_rate = np.log1p(alpha * gamma[k_of, i_of])
+        info_rate = fpmath.log1p(alpha * gamma[k_of, i_of])
         energy_rate = eta * (1.0 - alpha) * p_av[k_of, i_of] / e_ref
         w_info, w_energy = gw * bw / (LN2 * d_ref), 1.0 - gw
         tie = DWELL_TIE_BREAK * float(np.max(w_info * info_rate + w_energy * energy_rate))
@@ -735,11 +737,11 @@ class DwellSplitProblem:
         if "time_budget" in budgets:
             fits = min(fits, float(budgets["time_budget"]) / max(float(dwell.sum()), 1e-300))
         if "energy_budget" in budgets:
-            fits = min(fits, float(budgets["energy_budget"]) / max(float(budgets["dwell_power"] @ dwell), 1e-300))
+            fits = min(fits, float(budgets["energy_budget"]) / max(float(fpmath.dot(budgets["dwell_power"], dwell)), 1e-300))
         t = dwell[k_of] * min(1.0, fits) / scale  # in the program's unit of time
         alpha = np.nan_to_num(split[k_of, self._node_of_pair])
         n = self._served_nodes.size
-        info = np.bincount(node_row, weights=t * np.log1p(alpha * g), minlength=n)
+        info = np.bincount(node_row, weights=t * fpmath.log1p(alpha * g), minlength=n)
         joules = np.bincount(node_row, weights=t * (1.0 - alpha) * pr["harvest_rate"].value, minlength=n)
         info = np.minimum(info, pr["info_cap"].value)
         joules = np.minimum(joules, pr["room"].value)
@@ -950,7 +952,7 @@ def from_scenario(
     auv_m = scenario.cell_centers_m[cells]
     covered = covered_nodes(scenario, auv_m)
     budget = link_budget(scenario, slant_distances_m(auv_m, layout.positions_m))
-    snr = np.where(covered, 10.0 ** (budget.snr_db / 10.0), 0.0)
+    snr = np.where(covered, db_to_linear(budget.snr_db), 0.0)
     p_av = np.where(covered, budget.available_power_w, 0.0)
     data = layout.data_bits.copy() if data_bits is None else _array("data_bits", data_bits, (n,))
     stored = layout.initial_energy_j if stored_energy_j is None else _array("stored_energy_j", stored_energy_j, (n,))

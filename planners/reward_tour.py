@@ -31,6 +31,7 @@ import numpy as np
 from planners.policies import KMeansTspPlanner, Plan, Stop, _integer_steps, _scenario_of
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
+from swiptopt import fpmath
 from swiptopt.errors import ConfigError
 
 SELECTIONS = ("reward", "coverage")
@@ -191,7 +192,7 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
             extra = _greedy_extra(m, cells, order, extra_steps)
         counts = np.bincount(np.asarray(cells + [c for c, e in zip(order, extra) for _ in range(e)], dtype=np.int64),
                              minlength=m.n_cells)
-        cost += float(np.dot(extra, m.stay_cost[order]))
+        cost += float(fpmath.dot(np.asarray(extra, dtype=float), m.stay_cost[order]))
         dwell = [e + 1 for e in extra]  # the executor counts the arrival (or the first stay)
         return dwell, m.service_value(counts) - cost
 

@@ -214,12 +214,18 @@ class DeepResult:
 
 
 def pin_torch() -> None:
-    """One torch thread (intra- and inter-op) and deterministic algorithms, for this process.
+    """One torch thread (intra- and inter-op), deterministic algorithms and the CPU paths
+    of :func:`swiptopt.fpmath.pin_torch_cpu_paths`, for this process.
 
-    Training and acting are then bit-reproducible on the CPU, and a worker process uses one
-    core. torch allows setting the inter-op thread count only before its first parallel
-    work; if that has happened, the count is left as it is (it does not change results).
+    Training and acting are then bit-reproducible on the CPU, the same on any x86-64 CPU
+    with AVX2 (when no torch computation ran in this process before), and a worker process
+    uses one core. torch allows setting the inter-op thread count only before its first
+    parallel work; if that has happened, the count is left as it is (it does not change
+    results).
     """
+    from swiptopt.fpmath import pin_torch_cpu_paths
+
+    pin_torch_cpu_paths()
     import torch
 
     torch.set_num_threads(1)

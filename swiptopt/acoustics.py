@@ -1,7 +1,9 @@
 """The underwater acoustic channel: absorption, spreading, ambient noise, SNR and rate.
 
 Every function is a pure, vectorised numpy function: scalars and arrays are accepted and
-broadcast against each other; a scalar in gives a numpy scalar (0-d) out. Frequencies are
+broadcast against each other; a scalar in gives a numpy scalar (0-d) out. Logarithms and
+powers of ten go through :mod:`swiptopt.fpmath` (the C library's functions), so every
+quantity has the same bits on every CPU and in the kernel. Frequencies are
 in kHz because the empirical formulas were fitted in kHz; everything else is SI unless the
 name says otherwise (``_db``, ``_khz``, ``_km``).
 
@@ -13,8 +15,12 @@ for the source level of a projector. Paper equations refer to Omeke et al.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
+
+from swiptopt import fpmath
 
 #: Range in which Thorp's absorption formula is used here, kHz (SPEC 3.1).
 THORP_VALID_KHZ = (0.1, 1000.0)
@@ -50,12 +56,12 @@ def transmission_loss_db(
     """
     r = np.maximum(np.asarray(distance_m, dtype=float), 1.0)
     k = np.asarray(spreading_k, dtype=float)
-    return k * 10.0 * np.log10(r) + (r / 1000.0) * thorp_absorption_db_per_km(freq_khz)
+    return k * 10.0 * fpmath.log10(r) + (r / 1000.0) * thorp_absorption_db_per_km(freq_khz)
 
 
 def turbulence_noise_psd_db(freq_khz: ArrayLike) -> np.ndarray:
     """Turbulence noise N_t = 17 - 30 log10 f, dB re 1 uPa^2/Hz (paper eq. 5, l. 308; Stojanovic 2007)."""
-    return 17.0 - 30.0 * np.log10(_positive("freq_khz", freq_khz))
+    return 17.0 - 30.0 * fpmath.log10(_positive("freq_khz", freq_khz))
 
 
 def shipping_noise_psd_db(freq_khz: ArrayLike, shipping: ArrayLike) -> np.ndarray:
@@ -65,19 +71,19 @@ def shipping_noise_psd_db(freq_khz: ArrayLike, shipping: ArrayLike) -> np.ndarra
     """
     f = _positive("freq_khz", freq_khz)
     s = np.asarray(shipping, dtype=float)
-    return 30.0 + 20.0 * s + 26.0 * np.log10(f) - 60.0 * np.log10(f + 0.03)
+    return 30.0 + 20.0 * s + 26.0 * fpmath.log10(f) - 60.0 * fpmath.log10(f + 0.03)
 
 
 def wind_noise_psd_db(freq_khz: ArrayLike, wind_mps: ArrayLike) -> np.ndarray:
     """Wind-driven surface noise N_w = 50 + 7.5 sqrt(w) + 20 log10 f - 40 log10(f + 0.4) (paper eq. 7, l. 310)."""
     f = _positive("freq_khz", freq_khz)
     w = np.asarray(wind_mps, dtype=float)
-    return 50.0 + 7.5 * np.sqrt(w) + 20.0 * np.log10(f) - 40.0 * np.log10(f + 0.4)
+    return 50.0 + 7.5 * np.sqrt(w) + 20.0 * fpmath.log10(f) - 40.0 * fpmath.log10(f + 0.4)
 
 
 def thermal_noise_psd_db(freq_khz: ArrayLike) -> np.ndarray:
     """Thermal noise N_th = -15 + 20 log10 f, dB re 1 uPa^2/Hz (paper eq. 8, l. 311)."""
-    return -15.0 + 20.0 * np.log10(_positive("freq_khz", freq_khz))
+    return -15.0 + 20.0 * fpmath.log10(_positive("freq_khz", freq_khz))
 
 
 def noise_psd_db(
@@ -93,7 +99,7 @@ def noise_psd_db(
         wind_noise_psd_db(freq_khz, wind_mps),
         thermal_noise_psd_db(freq_khz),
     )
-    return 10.0 * np.log10(sum(10.0 ** (p / 10.0) for p in parts))
+    return 10.0 * fpmath.log10(sum(fpmath.pow10(p / 10.0) for p in parts))
 
 
 def noise_level_db(
@@ -117,7 +123,7 @@ def noise_level_db(
     fc = _positive("freq_khz", freq_khz)
     bw = _positive("bandwidth_hz", bandwidth_hz)
     if not integrate:
-        return noise_psd_db(fc, shipping, wind_mps) + 10.0 * np.log10(bw)
+        return noise_psd_db(fc, shipping, wind_mps) + 10.0 * fpmath.log10(bw)
     if band_khz is None:
         low, high = fc - bw / 2000.0, fc + bw / 2000.0
     else:
@@ -127,9 +133,9 @@ def noise_level_db(
         raise ValueError(f"the band must satisfy 0 < f_min < f_max, got [{low}, {high}] kHz")
     u = np.linspace(0.0, 1.0, n_points)
     f = low[..., None] + (high - low)[..., None] * u  # (..., n_points), kHz
-    psd_lin = 10.0 ** (noise_psd_db(f, s[..., None], w[..., None]) / 10.0)
+    psd_lin = fpmath.pow10(noise_psd_db(f, s[..., None], w[..., None]) / 10.0)
     power = np.trapezoid(psd_lin, f * 1000.0, axis=-1)  # uPa^2
-    return 10.0 * np.log10(power)
+    return 10.0 * fpmath.log10(power)
 
 
 def source_level_db(
@@ -144,8 +150,8 @@ def source_level_db(
     eta = _positive("efficiency", efficiency)
     return (
         SOURCE_LEVEL_PER_WATT_DB
-        + 10.0 * np.log10(p)
-        + 10.0 * np.log10(eta)
+        + 10.0 * fpmath.log10(p)
+        + 10.0 * fpmath.log10(eta)
         + np.asarray(directivity_db, dtype=float)
     )
 
@@ -171,7 +177,7 @@ def snr_db(
 
 def db_to_linear(value_db: ArrayLike) -> np.ndarray:
     """Power ratio from decibels."""
-    return 10.0 ** (np.asarray(value_db, dtype=float) / 10.0)
+    return fpmath.pow10(np.asarray(value_db, dtype=float) / 10.0)
 
 
 def capacity_bps(bandwidth_hz: ArrayLike, snr_db: ArrayLike) -> np.ndarray:
@@ -179,9 +185,15 @@ def capacity_bps(bandwidth_hz: ArrayLike, snr_db: ArrayLike) -> np.ndarray:
     return shannon_rate_bps(np.asarray(bandwidth_hz, dtype=float), db_to_linear(snr_db))
 
 
-def shannon_rate_bps(bandwidth_hz, snr_linear):  # type: ignore[no-untyped-def]
-    """B log2(1 + SNR) on a linear SNR; also compiles under numba (the kernel calls it)."""
-    return bandwidth_hz * np.log2(1.0 + snr_linear)
+def shannon_rate_bps(bandwidth_hz: ArrayLike, snr_linear: ArrayLike) -> np.ndarray:
+    """B log2(1 + SNR) on a linear SNR, bit/s (arrays; :func:`link_rate_bps` is one link)."""
+    return np.asarray(bandwidth_hz, dtype=float) * fpmath.log2(1.0 + np.asarray(snr_linear, dtype=float))
+
+
+def link_rate_bps(bandwidth_hz, snr_linear):  # type: ignore[no-untyped-def]
+    """:func:`shannon_rate_bps` of one link (floats), with the same C library ``log2``; the
+    kernel calls it, in Python or compiled by numba."""
+    return bandwidth_hz * math.log2(1.0 + snr_linear)
 
 
 def an_product_db(

@@ -375,13 +375,13 @@ def cover(world, nodes_m, pos, cov_node, cov_snr, cov_pav):  # type: ignore[no-u
             continue
         distance = np.sqrt(rx * rx + ry * ry + dz * dz)
         r = max(distance, 1.0)
-        tl = world[Q_K10] * np.log10(r) + (r / 1000.0) * world[Q_ABSORPTION]
+        tl = world[Q_K10] * math.log10(r) + (r / 1000.0) * world[Q_ABSORPTION]
         snr_db = world[Q_SL] - tl - world[Q_NL] + world[Q_DI_RX]
         if not snr_db >= world[Q_SNR_TH_DB]:
             continue
-        volts = 10.0 ** ((world[Q_SL] - tl + world[Q_SENSITIVITY]) / 20.0)
+        volts = math.pow(10.0, (world[Q_SL] - tl + world[Q_SENSITIVITY]) / 20.0)
         cov_node[count] = i
-        cov_snr[count] = 10.0 ** (snr_db / 10.0)
+        cov_snr[count] = math.pow(10.0, snr_db / 10.0)
         cov_pav[count] = world[Q_ELEMENTS] * (volts * volts) / (4.0 * world[Q_LOAD])
         count += 1
     return count
@@ -493,7 +493,7 @@ def action_towards(position_m: np.ndarray, target_m: np.ndarray, max_step_m: flo
     """The action (float32 (3,)) that moves straight towards ``target_m``, arriving this step
     when it is within ``max_step_m``."""
     delta = (np.asarray(target_m, dtype=float) - np.asarray(position_m, dtype=float)) / max_step_m
-    norm = float(np.sqrt(np.dot(delta, delta)))
+    norm = math.sqrt(delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2])
     if norm > 1.0:
         delta = delta / norm
     return delta.astype(np.float32)
@@ -521,6 +521,6 @@ def propulsion_energy_j(world: World, position_m: np.ndarray, velocity_mps: np.n
     the cruise speed) from ``position_m``, J; hovering (velocity 0) adds station keeping.
     The hotel load, ``hotel_power_w * step_duration_s``, comes on top of every step."""
     v = np.asarray(velocity_mps, dtype=float)
-    norm = float(np.sqrt(np.dot(v, v)))
+    norm = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     unit = v / world.speed_mps
     return float(propulsion_j(world.world, world.params, float(position_m[2]), unit, norm))

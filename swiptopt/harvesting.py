@@ -17,6 +17,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from swiptopt import fpmath
+
 HarvesterModel = Literal["linear", "logistic"]
 
 #: Logistic harvester defaults (Boshkovska et al. 2015, fitted to a measured harvesting
@@ -39,7 +41,7 @@ def induced_voltage_v(received_level_db: ArrayLike, sensitivity_db: ArrayLike) -
 
     ``received_level_db`` in dB re 1 uPa; ``sensitivity_db`` (rho) in dB re 1 V/uPa.
     """
-    return 10.0 ** ((np.asarray(received_level_db, float) + np.asarray(sensitivity_db, float)) / 20.0)
+    return fpmath.pow10((np.asarray(received_level_db, float) + np.asarray(sensitivity_db, float)) / 20.0)
 
 
 def available_power_w(
@@ -99,7 +101,7 @@ def harvest_from_input_w(p_in, logistic, efficiency, max_w, a_per_w, b_w):  # ty
 
 def _sigmoid_array(x: np.ndarray) -> np.ndarray:
     """:func:`_sigmoid` elementwise: both of its branches with one exp(-|x|)."""
-    e = np.exp(-np.abs(x))
+    e = fpmath.exp(-np.abs(x))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(x >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
 
@@ -107,10 +109,10 @@ def _sigmoid_array(x: np.ndarray) -> np.ndarray:
 def harvest_from_input_array_w(p_in, logistic, efficiency, max_w, a_per_w, b_w):  # type: ignore[no-untyped-def]
     """:func:`harvest_from_input_w` over broadcast numpy arrays (float64 out), W.
 
-    The same operations in the same order (numpy's exp in place of libm's, which agree to
-    the last bit on most machines and within an ulp elsewhere; a test holds the two to
-    1e-15), and the same clipping, written with ``np.where`` so that it behaves as
-    Python's ``min``/``max`` do. ``logistic`` is one bool for the whole array.
+    The same operations in the same order, with the same C library ``exp``
+    (:mod:`swiptopt.fpmath`), and the same clipping, written with ``np.where`` so that it
+    behaves as Python's ``min``/``max`` do: the same bits as the scalar function, element
+    for element. ``logistic`` is one bool for the whole array.
     """
     p = np.asarray(p_in, dtype=float)
     if logistic:

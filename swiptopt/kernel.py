@@ -693,7 +693,7 @@ _KERNEL_FUNCTIONS = (
 
 # The physics the step uses, by plain name: the compiled kernel rebinds these two names to
 # compiled versions of the very same functions (see ``compiled``).
-_shannon_rate_bps = acoustics.shannon_rate_bps
+_shannon_rate_bps = acoustics.link_rate_bps
 _harvest_from_input_w = harvesting.harvest_from_input_w
 
 
@@ -706,7 +706,7 @@ def compiled(name: str) -> Callable:
     if not _COMPILED:
         physics = compile_family({"_sigmoid": harvesting._sigmoid})
         physics.update(compile_family({"_harvest_from_input_w": harvesting.harvest_from_input_w}, physics))
-        physics.update(compile_family({"_shannon_rate_bps": acoustics.shannon_rate_bps}))
+        physics.update(compile_family({"_shannon_rate_bps": acoustics.link_rate_bps}))
         _COMPILED.update(
             compile_family({name: globals()[name] for name in _KERNEL_FUNCTIONS}, {
                 "_shannon_rate_bps": physics["_shannon_rate_bps"],

@@ -96,9 +96,14 @@ def import_modules(names: Iterable[str]) -> None:
 
 def prepare_worker(modules: Iterable[str] = ()) -> None:
     """Make this process a good worker: native libraries loaded later start with one
-    thread, ``modules`` are imported, and every loaded pool is limited to one thread."""
+    thread, torch's CPU paths are those every x86-64 CPU with AVX2 shares
+    (:func:`swiptopt.fpmath.pin_torch_cpu_paths`), ``modules`` are imported, and every loaded
+    pool is limited to one thread."""
+    from swiptopt.fpmath import pin_torch_cpu_paths
+
     for variable in THREAD_VARIABLES:
         os.environ[variable] = "1"
+    pin_torch_cpu_paths()
     import_modules(modules)
     limit_native_threads()
 

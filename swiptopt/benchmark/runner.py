@@ -52,6 +52,7 @@ from swiptopt.benchmark.processes import (
 )
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.errors import ConfigError
+from swiptopt.fpmath import pin_torch_cpu_paths
 
 #: Modules with the native libraries of each algorithm family: imported before the thread
 #: limit and before workers start, so the limit covers their pools and forked workers
@@ -471,6 +472,7 @@ def execute(
     """
     start = time.perf_counter()
     workers = check_run_options(workers, scheduler)
+    pin_torch_cpu_paths()  # before torch computes here or in a forked worker
     tasks = experiment.tasks()
     stored = store.keys()
     unique: dict[str, Task] = {}

@@ -22,6 +22,7 @@ import contextlib
 import hashlib
 import json
 import os
+import platform
 import re
 import sqlite3
 import time
@@ -31,6 +32,7 @@ from typing import Any, Iterable, Iterator
 from urllib.parse import quote
 
 from swiptopt.errors import ConfigError
+from swiptopt.fpmath import TORCH_CPU_PATHS
 
 DEFAULT_STORE = Path("results") / "swiptopt.sqlite"
 #: ``PRAGMA application_id`` of a swiptopt store ("SWPT").
@@ -77,8 +79,8 @@ _UNMARKED_COLUMNS = {
 }
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 
-_PACKAGES = ("swiptopt", "numpy", "gymnasium", "numba", "ortools", "cvxpy", "ompl", "scikit-learn", "threadpoolctl",
-             "dask", "distributed")
+_PACKAGES = ("swiptopt", "numpy", "scipy", "gymnasium", "numba", "ortools", "cvxpy", "clarabel", "highspy", "ompl",
+             "scikit-learn", "threadpoolctl", "dask", "distributed", "torch", "stable-baselines3", "sb3-contrib")
 
 
 class StoreError(ConfigError):
@@ -153,15 +155,47 @@ def package_revision() -> str | None:
     return checkout_revision(Path(swiptopt.__file__).resolve().parent.parent)
 
 
+def cpu_model() -> str | None:
+    """The CPU's model name (Linux: ``/proc/cpuinfo``; elsewhere what ``platform`` knows)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as info:
+            for line in info:
+                name, _, value = line.partition(":")
+                if name.strip() in ("model name", "Model", "cpu model"):
+                    return value.strip() or None
+    except OSError:
+        pass
+    return platform.processor() or None
+
+
+def machine() -> dict[str, Any]:
+    """What the guarantee of the same numbers depends on beside the package versions: the
+    CPU, its architecture, the C library, the SIMD features numpy found and torch's CPU
+    paths (:data:`swiptopt.fpmath.TORCH_CPU_PATHS`, as set in this process)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # numpy < 2
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    libc, libc_version = platform.libc_ver()
+    return {
+        "cpu": cpu_model(),
+        "architecture": platform.machine(),
+        "libc": f"{libc} {libc_version}".strip() or None,
+        "simd": [name for name in ("AVX2", "FMA3", "AVX512F", "AVX512_SKX") if features.get(name)],
+        "torch_cpu_paths": {name: os.environ.get(name) for name in TORCH_CPU_PATHS},
+    }
+
+
 def provenance() -> dict[str, Any]:
-    """Package versions and swiptopt's git revision (None unless it runs from a checkout)."""
+    """Package versions, the machine (:func:`machine`) and swiptopt's git revision (None
+    unless it runs from a checkout)."""
     versions = {}
     for name in _PACKAGES:
         try:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             versions[name] = None
-    return {"versions": versions, "git": package_revision()}
+    return {"versions": versions, "machine": machine(), "git": package_revision()}
 
 
 # ------------------------------------------------------------------ the store

@@ -401,6 +401,14 @@ def test_run_does_not_run_git_in_the_working_directory(tmp_path):
     assert recorded["git"] == store_module.package_revision()
     assert recorded["git"] != _git("rev-parse", "HEAD", cwd=evil)
     assert recorded["versions"]["swiptopt"] and recorded["versions"]["numpy"]
+    # the machine beside the versions: what the same-numbers guarantee depends on
+    import platform
+
+    assert recorded["machine"]["architecture"] == platform.machine()
+    if os.path.exists("/proc/cpuinfo"):
+        with open("/proc/cpuinfo") as info:
+            names = [line.split(":", 1)[1].strip() for line in info if line.startswith("model name")]
+        assert recorded["machine"]["cpu"] == (names[0] if names else recorded["machine"]["cpu"])
     root = os.path.dirname(os.path.dirname(os.path.abspath(swiptopt.__file__)))
     if os.path.exists(os.path.join(root, ".git")):
         assert recorded["git"] == _git("rev-parse", "HEAD", cwd=root)
