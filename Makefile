@@ -4,13 +4,25 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: compare test install clean
+.PHONY: compare test install constraints clean
 
-$(VENV)/.installed: pyproject.toml
+# constraints.txt pins every package a fresh clone installs (for Python 3.11, CI's; other
+# Pythons resolve freely), so that two machines run the same code: `make constraints`
+# refreshes it from what pip resolves today in a scratch environment.
+$(VENV)/.installed: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[all,test]'
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[all,test]'
 	touch $@
+
+constraints:
+	rm -rf .venv-constraints
+	$(PYTHON) -m venv .venv-constraints
+	.venv-constraints/bin/python -m pip install --quiet --upgrade pip
+	.venv-constraints/bin/python -m pip install --quiet -e '.[all,test]'
+	{ echo '# Every package `make install` takes, pinned; refreshed by `make constraints`.'; \
+	  .venv-constraints/bin/python -m pip freeze --exclude-editable | sed 's/$$/ ; python_version == "3.11"/'; } > constraints.txt
+	rm -rf .venv-constraints
 
 install: $(VENV)/.installed
 
@@ -21,4 +33,4 @@ test: $(VENV)/.installed
 	$(BIN)/python -m pytest -n 2 -q
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) .venv-constraints build *.egg-info
