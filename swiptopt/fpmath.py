@@ -156,12 +156,13 @@ def pow10(x: ArrayLike, *, backend: str = "auto") -> np.ndarray:
     return _apply("pow10", x, backend)
 
 
-#: torch's CPU paths, held to those of x86-64 CPUs with AVX2 (``x86-64-v3``: Intel since
-#: Haswell, AMD since Excavator): ATen's vectorised kernels at AVX2 (its AVX-512 softmax and
-#: log-softmax differ in the last bit), and MKL's conditional numerical reproducibility on
-#: its AVX2 branch (its matrix products otherwise choose kernels by CPU). Measured on the
-#: development machine: no slower than the defaults for the networks trained here.
-TORCH_CPU_PATHS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "AVX2"}
+#: torch's CPU paths, held to those every x86-64 CPU with AVX2 runs alike (``x86-64-v3``:
+#: Intel since Haswell, AMD since Excavator): ATen's vectorised kernels at AVX2 (its AVX-512
+#: softmax and log-softmax differ in the last bit), and MKL's conditional numerical
+#: reproducibility in its ``COMPATIBLE`` mode, the one Intel documents to give the same
+#: results on Intel and AMD processors (MKL otherwise chooses matrix-product kernels by CPU
+#: and vendor). ``benchmarks/deeprl_speed.py`` prints what it costs.
+TORCH_CPU_PATHS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
 
 
 def pin_torch_cpu_paths() -> dict[str, str | None]:
