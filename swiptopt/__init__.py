@@ -20,10 +20,14 @@ ENV_ID = "swiptopt/AuvSwipt-v1"
 if ENV_ID not in registry:
     # no max_episode_steps here: the scenario sets the episode length, and the env reports it
     # in its spec (AuvSwiptEnv.spec)
-    register(id=ENV_ID, entry_point="swiptopt.env:AuvSwiptEnv")
+    register(id=ENV_ID, entry_point="swiptopt.env:AuvSwiptEnv", vector_entry_point="swiptopt.vector:grid_vector_env")
 CONTINUOUS_ENV_ID = "swiptopt/AuvSwiptContinuous-v0"
 if CONTINUOUS_ENV_ID not in registry:
-    register(id=CONTINUOUS_ENV_ID, entry_point="swiptopt.env_continuous:AuvSwiptContinuousEnv")
+    register(
+        id=CONTINUOUS_ENV_ID,
+        entry_point="swiptopt.env_continuous:AuvSwiptContinuousEnv",
+        vector_entry_point="swiptopt.vector:continuous_vector_env",
+    )
 
 __all__ = [
     "CONTINUOUS_ENV_ID",
