@@ -34,24 +34,27 @@ from swiptopt.worlds import GRID
 
 def _split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
     """Gymnasium's aggregated vector infos (key -> array over the copies, ``_key`` -> mask)
-    back to one dict per copy, values as the single env gives them (Python scalars, arrays
-    per copy, objects as they are). ``final_obs`` and ``final_info`` are left out."""
+    back to one dict per copy, values as the single env gives them (Python scalars, an array
+    of its own per copy, objects as they are). ``final_obs`` and ``final_info`` are left out."""
     out: list[dict[str, Any]] = [{} for _ in range(n)]
     for key, value in infos.items():
         if key in ("final_obs", "final_info") or (key.startswith("_") and key[1:] in infos):
             continue
-        copies = np.flatnonzero(infos[f"_{key}"]).tolist()
+        mask = infos[f"_{key}"]
         if isinstance(value, dict):
-            values = _split_infos(value, n)
+            values: Any = _split_infos(value, n)
         elif value.dtype == object:
-            values = list(value)
+            values = value
         elif value.ndim > 1:
-            values = list(value)  # rows: one array per copy
+            values = [row.copy() for row in value]
         else:
             values = value.tolist()
-        for i in copies:
-            v = values[i]
-            out[i][key] = v.copy() if isinstance(v, np.ndarray) else v
+        if mask.all():
+            for info, v in zip(out, values):
+                info[key] = v
+        else:
+            for i in np.flatnonzero(mask).tolist():
+                out[i][key] = values[i]
     return out
 
 

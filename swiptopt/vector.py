@@ -307,8 +307,9 @@ def _check_num_envs(value: Any) -> int:
 def _check_autoreset_mode(value: Any) -> AutoresetMode:
     if isinstance(value, AutoresetMode):
         return value
-    for mode in AutoresetMode:
-        if isinstance(value, str) and value.replace("_", "").lower() in (mode.value.lower(), mode.name.replace("_", "").lower()):
+    key = value.replace("_", "").lower() if isinstance(value, str) else None
+    for mode in AutoresetMode:  # "NextStep", "NEXT_STEP", "next_step", ...
+        if key == mode.value.lower():
             return mode
     choices = [m.value for m in AutoresetMode]
     raise ConfigError(
@@ -396,8 +397,9 @@ class AuvSwiptVectorEnv(VectorEnv):
     the single envs take them. ``observation``: one of the world's
     (:data:`swiptopt.worlds.OBSERVATIONS`; ``None``: its default, the grid's ``tabular``).
     ``backend``: ``"compiled"`` (numba), ``"python"`` (the same loop over the Python kernel,
-    for tests) or ``"auto"``. No render modes. :attr:`envs` are the copies' controllers:
-    read their ``scenario``, ``tables``/``world`` and ``state``, never step them.
+    for tests) or ``"auto"``. No render modes. :attr:`scenario` is the scenario the copies
+    were made with; :attr:`envs` are the copies' controllers: read their ``scenario`` (the
+    copy's current layout), ``tables``/``world`` and ``state``, never step them.
 
     ## Version History
 
@@ -472,6 +474,8 @@ class AuvSwiptVectorEnv(VectorEnv):
         self.render_mode = None
         self._autoreset = np.zeros(n, dtype=bool)  # copies whose episode ended
         self._started = np.zeros(n, dtype=bool)  # copies reset at least once
+        self._all_started = False
+        self._everyone = np.ones(n, dtype=bool)  # every copy steps (read-only)
 
     # ----------------------------------------------------------------- properties
 
@@ -511,6 +515,7 @@ class AuvSwiptVectorEnv(VectorEnv):
         self._copies.obs[i] = obs
         self._autoreset[i] = False
         self._started[i] = True
+        self._all_started = bool(self._started.all())
         return info
 
     def reset(
@@ -552,7 +557,10 @@ class AuvSwiptVectorEnv(VectorEnv):
         n = self.num_envs
         if self.world == GRID:
             a = np.asarray(actions)
-            if a.shape != (n,) or a.dtype.kind not in "iuf" or not np.all((a >= 0) & (a < K.N_ACTIONS) & (a == np.floor(a))):
+            ok = a.shape == (n,) and a.dtype.kind in "iuf"
+            if ok and a.dtype.kind == "f":
+                ok = bool(np.all(a == np.floor(a)))  # integral floats are actions; NaN is not
+            if not (ok and a.min() >= 0 and a.max() < K.N_ACTIONS):
                 raise ValueError(f"actions must be ({n},) integers in [0, {K.N_ACTIONS - 1}], got {actions!r}")
             return a.astype(np.int64)
         try:
@@ -563,43 +571,45 @@ class AuvSwiptVectorEnv(VectorEnv):
             raise ValueError(f"actions must be ({n}, {C.ACTION_DIM}) numbers (x, y, depth) in [-1, 1], got {actions!r}")
         return a
 
-    def _advance(self, actions: np.ndarray, active: np.ndarray) -> None:
-        """Step the ``active`` copies: refill the draw buffers that need it from each copy's
-        generator, then one call of the loop over the copies."""
+    def _advance(self, actions: np.ndarray, active: np.ndarray | None) -> None:
+        """Step the ``active`` copies (``None``: all): refill the draw buffers that need it
+        from each copy's generator, then one call of the loop over the copies."""
         copies = self._copies
-        for i in np.flatnonzero(copies.refills & active).tolist():
-            copies.refill(i, self.envs[i])
-        copies.step(self._step_copies, actions, active)
+        refills = copies.refills if active is None else copies.refills & active
+        if refills.any():
+            for i in np.flatnonzero(refills).tolist():
+                copies.refill(i, self.envs[i])
+        copies.step(self._step_copies, actions, self._everyone if active is None else active)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every copy (see Autoreset in the class docstring); returns the batched
         observations, rewards, terminations, truncations and infos."""
-        if not self._started.all():
+        if not self._all_started:
             raise RuntimeError("call reset() before step() (some copies were never reset)")
         a = self._actions(actions)
         copies, mode = self._copies, self.autoreset_mode
-        if mode is AutoresetMode.NEXT_STEP:
-            resetting = self._autoreset.copy()
-            active = ~resetting
-        else:
-            if mode is AutoresetMode.DISABLED and self._autoreset.any():
-                raise RuntimeError(
-                    f"copies {np.flatnonzero(self._autoreset).tolist()} ended their episodes: reset them first "
-                    "(reset(options={'reset_mask': mask}); autoreset_mode is DISABLED)"
-                )
-            resetting = np.zeros(self.num_envs, dtype=bool)
-            active = np.ones(self.num_envs, dtype=bool)
-        if active.any():
+        waiting = self._autoreset.any()  # copies whose episode ended at the last step
+        if waiting and mode is AutoresetMode.DISABLED:
+            raise RuntimeError(
+                f"copies {np.flatnonzero(self._autoreset).tolist()} ended their episodes: reset them first "
+                "(reset(options={'reset_mask': mask}); autoreset_mode is DISABLED)"
+            )
+        resetting = self._autoreset.copy() if waiting else None  # NEXT_STEP: they reset instead of stepping
+        active = None if resetting is None else ~resetting
+        if active is None or active.any():
             self._advance(a, active)
         codes, parts = copies.codes, copies.parts
-        terminated = active & (codes == K.TERMINATED)
-        truncated = active & (codes == K.TRUNCATED)
-        done = terminated | truncated
+        terminated, truncated = codes == K.TERMINATED, codes == K.TRUNCATED
         # the single env's reward, (throughput + harvest) + movement, in its order of additions
-        rewards = np.where(active, (parts[:, 0] + parts[:, 1]) + parts[:, 2], 0.0)
+        rewards = (parts[:, 0] + parts[:, 1]) + parts[:, 2]
+        if active is not None:  # the resetting copies did not step: no reward, no end
+            terminated &= active
+            truncated &= active
+            rewards[resetting] = 0.0
+        done = terminated | truncated
+        ended = np.flatnonzero(done).tolist() if done.any() else []
         same_step = mode is AutoresetMode.SAME_STEP
-        infos = self._step_infos(active & ~done if same_step else active)
-        ended = np.flatnonzero(done).tolist()
+        infos = self._step_infos(active, done if same_step and ended else None)
         for i in ended:
             if same_step:
                 final = {"final_obs": copies.obs[i].copy(), "final_info": self._step_info(i)}
@@ -607,28 +617,37 @@ class AuvSwiptVectorEnv(VectorEnv):
                 infos = self._add_info(infos, self._reset_copy(i, None, None), i)
             else:
                 infos = self._add_info(infos, {INFO_KEY: self.envs[i].episode_metrics()}, i)
-        for i in np.flatnonzero(resetting).tolist():
-            infos = self._add_info(infos, self._reset_copy(i, None, None), i)
-        if not same_step:
+        if resetting is not None:
+            for i in np.flatnonzero(resetting).tolist():
+                infos = self._add_info(infos, self._reset_copy(i, None, None), i)
+        if ended and not same_step:
             self._autoreset[ended] = True
         return copies.obs.copy(), rewards, terminated, truncated, infos
 
-    def _step_infos(self, stepped: np.ndarray) -> dict[str, Any]:
-        """The step infos of the ``stepped`` copies, aggregated as ``SyncVectorEnv`` does
-        (built from the rows at once: zeros where a copy gave none)."""
-        if not stepped.any():
+    def _step_infos(self, active: np.ndarray | None, final: np.ndarray | None) -> dict[str, Any]:
+        """The step infos of the copies that stepped (``active``; ``None``: all), less those
+        whose infos go to ``final_info`` (``final``; ``None``: none), aggregated as
+        ``SyncVectorEnv`` does (built from the rows at once: zeros where a copy gave none)."""
+        stepped = self._everyone if active is None else active
+        if final is not None:
+            stepped = stepped & ~final
+        every = stepped is self._everyone or bool(stepped.all())
+        if not every and not stepped.any():
             return {}
+
+        def rows(values: np.ndarray) -> np.ndarray:
+            if every:
+                return values.copy()
+            return np.where(stepped.reshape(-1, *([1] * (values.ndim - 1))), values, np.zeros((), values.dtype))
+
         parts = self._copies.parts
         reward_parts: dict[str, Any] = {}
         for k, name in enumerate(K.REWARD_PART_NAMES):
-            reward_parts[name] = np.where(stepped, parts[:, k], 0.0)
-            reward_parts[f"_{name}"] = stepped.copy()
+            reward_parts[name], reward_parts[f"_{name}"] = rows(parts[:, k]), stepped.copy()
         infos = {"reward_parts": reward_parts, "_reward_parts": stepped.copy()}
         if self.world == CONTINUOUS:
-            infos["position"] = np.where(stepped[:, None], self._copies.pos, 0.0)
-            infos["_position"] = stepped.copy()
-            infos["blocked"] = stepped & self._copies.blocked
-            infos["_blocked"] = stepped.copy()
+            infos["position"], infos["_position"] = rows(self._copies.pos), stepped.copy()
+            infos["blocked"], infos["_blocked"] = rows(self._copies.blocked), stepped.copy()
         return infos
 
     def _step_info(self, i: int) -> dict[str, Any]:

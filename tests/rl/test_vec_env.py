@@ -104,7 +104,8 @@ def test_per_copy_options_and_the_attribute_methods():
         assert_same(ours.step(a), theirs.step(a))
     assert ours.get_attr("layout_seeds") == theirs.get_attr("layout_seeds")
     assert [s.layout_seed for s in ours.get_attr("scenario")] == [s.layout_seed for s in theirs.get_attr("scenario")]
-    assert_same([dict(m) for m in ours.env_method("episode_metrics")], [dict(m) for m in theirs.env_method("episode_metrics")])
+    metrics = [[dict(m) for m in venv.env_method("episode_metrics")] for venv in (ours, theirs)]
+    assert_same(*metrics)
     assert_same(ours.env_method("episode_metrics", indices=[2]), theirs.env_method("episode_metrics", indices=[2]))
     ours.set_attr("note", "x", indices=[0, 2])
     assert ours.get_attr("note", indices=[0, 2]) == ["x", "x"] and not ours.has_attr("note")

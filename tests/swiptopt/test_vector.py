@@ -189,7 +189,7 @@ def test_a_layout_covering_more_pairs_widens_the_rows():
     # the rows start as wide as the scenario's own layout; a layout covering more pairs widens them
     preset, kwargs = WORLDS["grid"]
     fields = {k: v for k, v in kwargs.items() if k not in ("observation", "layout_seeds")}
-    nnz = {k: K.build_tables(swiptopt.Scenario.preset(preset, **fields, layout_seed=k)).cov_node.shape[0] for k in range(12)}
+    nnz = {k: K.build_tables(swiptopt.Scenario.preset(preset, **fields, layout_seed=k)).cov_node.size for k in range(12)}
     small, big = min(nnz, key=nnz.get), max(nnz, key=nnz.get)
     assert nnz[big] > nnz[small]
     changes = {"layout_seed": small, "layout_seeds": None}
