@@ -411,6 +411,19 @@ def test_straight_legs_through_the_pier_are_given_up_and_the_episode_goes_on():
     assert given_up > 0
 
 
+def test_continuous_layouts_per_episode_and_the_same_seed_give_the_same_episode():
+    first = ContinuousStopChoiceEnv(legs="straight", layout_seeds=[0, 3])
+    second = ContinuousStopChoiceEnv(legs="straight", layout_seeds=[0, 3])
+    a_obs, a_rewards, _ = random_episode(first, seed=9, rng_seed=2, options={"layout_seed": 3})
+    b_obs, b_rewards, _ = random_episode(second, seed=9, rng_seed=2, options={"layout_seed": 3})
+    assert first.scenario.layout_seed == 3
+    assert a_rewards == b_rewards and all(np.array_equal(x, y) for x, y in zip(a_obs, b_obs))
+    assert all(np.array_equal(x, y) for x, y in zip(first.kernel_actions, second.kernel_actions))
+    points_3 = first.stops_layout().points_m.copy()
+    first.reset(seed=9, options={"layout_seed": 0})
+    assert not np.array_equal(first.stops_layout().points_m, points_3)
+
+
 # ----------------------------------------------------------------------------- MaskablePPO
 
 
