@@ -1,20 +1,33 @@
-"""Deep-RL contenders: Stable-Baselines3's PPO, DQN and SAC on the ``vector`` observation.
+"""Deep-RL contenders: Stable-Baselines3's PPO, DQN and SAC and sb3-contrib's MaskablePPO.
 
 One entry point trains any of them (:func:`train_deep`), or any other SB3 algorithm named by
 its class (``"stable_baselines3:A2C"``), in either world (:mod:`swiptopt.worlds`): the
 paper's grid (discrete moves: PPO, DQN) or the continuous world (velocity commands in a
-``Box``: PPO, SAC). Models are saved in SB3's own ``.zip`` format, with the
-hash of their configuration inside, and loaded back (:func:`load_deep`);
-:func:`deep_config_hash` names a training configuration, so that :func:`train_or_load_deep`
-(and the benchmark) reuse a stored model whose configuration matches instead of training it
-again. Processes that want the same model at once train it once (a lock file beside it).
+``Box``: PPO, SAC), or on any registered environment over a scenario (``env_id``: the stop
+choosing environment of :mod:`planners.stops`, which MaskablePPO trains on). ``n_envs``
+copies of the environment train at once, stepped together by
+:class:`rl.vec_env.Sb3VectorEnv` (one compiled call for all copies of a world's env) or by
+SB3's ``DummyVecEnv`` (other environments): the same episodes either way.
+
+Trained models are kept as their network weights (:func:`save_weights`: a ``.npz`` of
+arrays and a JSON header, read back with ``allow_pickle=False``), never as SB3's ``.zip``,
+whose ``load`` unpickles what the file holds: a weights file is data, and reading one runs
+no code. :func:`train_or_load_deep` keeps them in a directory under names made of
+:func:`deep_config_hash` and records each file's SHA-256 in the directory's manifest
+(``manifest.json``, written atomically): it loads only a file whose digest the manifest
+records, so a model it reuses is one it wrote (or one a directory of ``pretrained`` models
+vouches for), and retrains otherwise, saying why in the result's ``note``.
+:func:`save_deep` / :func:`load_deep` still read and write SB3's zips for users who want
+them; such a zip is code, like a pickle: load only zips you made, or check one against the
+SHA-256 you recorded (``load_deep(..., sha256=...)``).
 
 Reproducible on the CPU: the same configuration gives the same trained model, bit for bit,
-on any run. :func:`pin_torch` runs torch on one thread (intra- and inter-op) with
-deterministic algorithms, the device is always ``"cpu"``, SB3 seeds its generators from the
-configuration's seed, and the environment's generator is seeded from it at the first reset.
-SB3's seeding also sets Python's ``random``, NumPy's global generator and torch's global
-seed (SB3 draws from them): a side effect of training with SB3, not of this project.
+on any run and any x86-64 CPU with AVX2. :func:`pin_torch` runs torch on one thread with
+deterministic algorithms and the CPU paths of :func:`swiptopt.fpmath.pin_torch_cpu_paths`,
+the device is always ``"cpu"``, SB3 seeds its generators from the configuration's seed, and
+copy i of the environment is seeded with seed + i at the first reset. SB3's seeding also
+sets Python's ``random``, NumPy's global generator and torch's global seed (SB3 draws from
+them): a side effect of training with SB3, not of this project.
 
 Stable-Baselines3 and torch (the ``deeprl`` extra) load inside the functions that use them:
 ``import rl`` does not import them.
@@ -34,7 +47,7 @@ import time
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -43,21 +56,32 @@ from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import Scenario
 from swiptopt.worlds import ENV_IDS, GRID, check_world, make_env
 
-#: The algorithms :func:`train_deep` trains, by name, with their SB3 class. Any other SB3
+#: The algorithms :func:`train_deep` trains by name, with their class. Any other SB3
 #: algorithm is named by its class as ``"package.module:Class"`` (``"stable_baselines3:A2C"``).
-DEEP_ALGORITHMS = {"dqn": "DQN", "ppo": "PPO", "sac": "SAC"}
+DEEP_ALGORITHMS = {
+    "dqn": "stable_baselines3:DQN",
+    "ppo": "stable_baselines3:PPO",
+    "sac": "stable_baselines3:SAC",
+    "maskable_ppo": "sb3_contrib:MaskablePPO",
+}
 #: ``"package.module:Class"``: an algorithm class named by where it lives.
 CLASS_PATH = re.compile(r"[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*")
-#: The attribute a saved model carries with the :func:`deep_config_hash` it was trained for
-#: (SB3 saves a model's plain attributes in its zip): a file under a hashed name that holds
-#: another model is recognised as such.
+#: The attribute a model saved by :func:`save_deep` carries with its :func:`deep_config_hash`.
 HASH_ATTRIBUTE = "swiptopt_config_hash"
+#: The format named in a weights file's header (:func:`save_weights`).
+WEIGHTS_FORMAT = "swiptopt-weights-1"
+#: The manifest of a model directory: file name -> SHA-256 and what the file holds.
+MANIFEST = "manifest.json"
+#: The suffix of weights files.
+WEIGHTS_SUFFIX = ".npz"
 
 #: SB3 constructor arguments :func:`train_deep` sets itself (never through ``hyperparams``).
 _RESERVED = ("policy", "env", "seed", "device", "policy_kwargs", "verbose", "tensorboard_log", "_init_setup_model")
 
 #: The observation the deep agents act on.
 OBSERVATION = "vector"
+#: The most copies of the environment one training steps at once.
+MAX_ENVS = 1024
 
 
 def _check_algorithm(algorithm: Any) -> str:
@@ -80,10 +104,7 @@ def _algorithm_class(algorithm: str) -> type:
         raise ConfigError(
             "deep RL needs Stable-Baselines3: pip install 'swiptopt[deeprl]'", "algorithm"
         ) from None
-    module_name, _, qualname = (
-        ("stable_baselines3", "", DEEP_ALGORITHMS[algorithm]) if algorithm in DEEP_ALGORITHMS
-        else _check_algorithm(algorithm).partition(":")
-    )
+    module_name, _, qualname = DEEP_ALGORITHMS.get(algorithm, _check_algorithm(algorithm)).partition(":")
     try:
         obj: Any = importlib.import_module(module_name)
         for part in qualname.split("."):
@@ -102,10 +123,21 @@ def _file_stem(algorithm: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "_", name)
 
 
-def _check_int(name: str, value: Any, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ConfigError(f"{name} = {value!r} must be an integer >= {low}", name)
+def _check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
+    if (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low
+            or (high is not None and value > high)):
+        bound = f"in [{low}, {high}]" if high is not None else f">= {low}"
+        raise ConfigError(f"{name} = {value!r} must be an integer {bound}", name)
     return int(value)
+
+
+def _plain(name: str, value: Any) -> Any:
+    """``value`` if it is JSON-able plain data (what a configuration may hold), else an error."""
+    try:
+        json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} = {value!r} must be plain data (numbers, strings, lists, mappings)", name) from None
+    return value
 
 
 @dataclass(frozen=True)
@@ -113,12 +145,12 @@ class DeepConfig:
     """One deep-RL training run, validated at construction."""
 
     algorithm: str
-    """``"ppo"`` or ``"dqn"`` (:data:`DEEP_ALGORITHMS`), or an SB3 algorithm class as
-    ``"package.module:Class"``."""
+    """A name of :data:`DEEP_ALGORITHMS`, or an SB3 algorithm class as ``"package.module:Class"``."""
     timesteps: int
-    """Environment steps of training."""
+    """Environment steps of training (all copies together). An on-policy algorithm collects
+    whole rollouts of ``n_envs * n_steps`` steps, so it trains up to the next multiple."""
     seed: int = 0
-    """Seeds SB3 (network initialisation, sampling, exploration) and the environment."""
+    """Seeds SB3 (network initialisation, sampling, exploration) and the environments."""
     hyperparams: Mapping[str, Any] = field(default_factory=dict)
     """SB3 constructor arguments (``learning_rate``, ``n_steps``, ``buffer_size``, ...);
     unset ones keep SB3's defaults."""
@@ -129,17 +161,28 @@ class DeepConfig:
     ``range`` stays a range (it names its layouts by start, stop and step)."""
     world: str = GRID
     """The world trained in (:mod:`swiptopt.worlds`): ``"grid"`` or ``"continuous"``."""
+    n_envs: int = 1
+    """Copies of the environment stepped together (copy i seeded with ``seed + i``)."""
+    env_id: str | None = None
+    """A registered environment to train on instead of the world's own (made with
+    ``gymnasium.make(env_id, scenario=..., layout_seeds=..., **env_kwargs)``)."""
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """More arguments of ``env_id``'s environment (plain data)."""
 
     def __post_init__(self) -> None:
         _check_algorithm(self.algorithm)
         object.__setattr__(self, "world", check_world(self.world))
         object.__setattr__(self, "timesteps", _check_int("timesteps", self.timesteps, 1))
         object.__setattr__(self, "seed", _check_int("seed", self.seed, 0))
-        for name in ("hyperparams", "policy_kwargs"):
+        object.__setattr__(self, "n_envs", _check_int("n_envs", self.n_envs, 1, MAX_ENVS))
+        for name in ("hyperparams", "policy_kwargs", "env_kwargs"):
             value = getattr(self, name)
             if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
                 raise ConfigError(f"{name} = {value!r} must be a mapping of argument names to values", name)
             object.__setattr__(self, name, dict(value))
+        if self.env_id is not None and not isinstance(self.env_id, str):
+            raise ConfigError(f"env_id = {self.env_id!r} must be a registered environment id (a string)", "env_id")
+        _plain("env_kwargs", dict(self.env_kwargs))
         seeds = check_layout_seeds(self.layout_seeds)
         if seeds is not None and not isinstance(seeds, range):
             seeds = tuple(int(s) for s in seeds)
@@ -163,10 +206,13 @@ class DeepConfig:
                     "hyperparams",
                 )
 
+    def replace(self, **changes: Any) -> DeepConfig:
+        return dataclasses.replace(self, **changes)
+
     def to_dict(self) -> dict[str, Any]:
-        """The configuration as plain data; the world only when it is not the grid, so the
-        grid's configurations (and the hashes of models stored before there were worlds)
-        read as before."""
+        """The configuration as plain data; the world, the copies and the environment only
+        when they are not the defaults, so that configurations that use none of them read
+        as before."""
         out = {
             "algorithm": self.algorithm,
             "timesteps": self.timesteps,
@@ -177,6 +223,12 @@ class DeepConfig:
         }
         if self.world != GRID:
             out["world"] = self.world
+        if self.n_envs != 1:
+            out["n_envs"] = self.n_envs
+        if self.env_id is not None:
+            out["env_id"] = self.env_id
+        if self.env_kwargs:
+            out["env_kwargs"] = dict(self.env_kwargs)
         return out
 
 
@@ -207,6 +259,12 @@ class DeepResult:
     """Whether the model was loaded from a stored file instead of trained."""
     note: str = ""
     """What happened to a stored model that could not be used (it was replaced)."""
+    path: Path | None = None
+    """The weights file the model was saved to or loaded from (:func:`train_or_load_deep`)."""
+    sha256: str | None = None
+    """That file's SHA-256."""
+    cpu_seconds: float = 0.0
+    """CPU time of the training (this process), s; 0 when loaded."""
 
     def predict(self, obs: Any, deterministic: bool = True) -> Any:
         """The model's ``predict``, so a result is a policy itself."""
@@ -238,11 +296,13 @@ def pin_torch() -> None:
 
 def _versions() -> dict[str, str]:
     out = {}
-    for package in ("stable_baselines3", "torch", "gymnasium"):
+    for package in ("stable_baselines3", "sb3_contrib", "torch", "gymnasium"):
         try:
             out[package] = version(package)
         except PackageNotFoundError:  # pragma: no cover - depends on the installation
             out[package] = "absent"
+    if out["sb3_contrib"] == "absent":
+        del out["sb3_contrib"]
     return out
 
 
@@ -257,23 +317,33 @@ def _canonical(value: Any) -> Any:
     raise TypeError(f"cannot hash a setting of type {type(value).__name__}: {value!r}")
 
 
+def _env_id(config: DeepConfig) -> str:
+    return config.env_id if config.env_id is not None else ENV_IDS[config.world]
+
+
 def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
     """A hex SHA-256 naming a training run: the configuration (algorithm, timesteps, seed,
-    settings, layouts, world), the scenario, the observation, the environment's id and
-    version (the world's), and the versions of Stable-Baselines3, torch and Gymnasium. Equal
-    hashes mean the same trained model; a grid model and a continuous one never share one."""
+    settings, layouts, world, copies, environment), the scenario, the observation, the
+    environment's id and version, and the versions of Stable-Baselines3 (and sb3-contrib),
+    torch and Gymnasium. Equal hashes mean the same trained model."""
     payload = {
         "config": config.to_dict(),
         "scenario": scenario.to_dict(),
         "observation": OBSERVATION,
-        "env": ENV_IDS[config.world],
+        "env": _env_id(config),
         "versions": _versions(),
     }
     text = json.dumps(payload, sort_keys=True, default=_canonical, allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
-def _episode_log_callback() -> Any:
+# ------------------------------------------------------------------ training
+
+
+def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]]) -> tuple[Any, Any]:
+    """SB3 callbacks: the return of every training episode as it ends, and a call of
+    ``checkpoints[n]`` with the model when training has reached n steps (between rollouts,
+    where a run of n steps would have stopped)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EpisodeLog(BaseCallback):
@@ -295,25 +365,62 @@ def _episode_log_callback() -> Any:
                         self.returns.append(math.nan)
             return True
 
-    return EpisodeLog()
+    class Checkpoints(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.pending = dict(checkpoints)
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_start(self) -> None:
+            saver = self.pending.pop(self.model.num_timesteps, None)
+            if saver is not None:
+                saver(self.model)
+
+    return EpisodeLog(), Checkpoints()
+
+
+def _make_one(config: DeepConfig, scenario: Scenario) -> Any:
+    """One copy of the training environment of ``config`` on ``scenario``."""
+    if config.env_id is None:
+        return make_env(config.world, scenario, observation=OBSERVATION, layout_seeds=config.layout_seeds)
+    import gymnasium as gym
+
+    try:
+        return gym.make(config.env_id, scenario=scenario, layout_seeds=config.layout_seeds,
+                        disable_env_checker=True, **config.env_kwargs)
+    except gym.error.Error as exc:
+        raise ConfigError(f"env_id = {config.env_id!r}: {exc}", "env_id") from None
+
+
+def _vector_env(config: DeepConfig, scenario: Scenario) -> Any:
+    """The training environment: with ``n_envs = 1`` one copy (SB3 wraps it in its
+    ``Monitor`` and ``DummyVecEnv``); else ``n_envs`` copies as an SB3 ``VecEnv``, the world's
+    own env stepped together by :class:`rl.vec_env.Sb3VectorEnv`, any other by
+    ``DummyVecEnv`` (the same episodes either way, copy i seeded with seed + i)."""
+    if config.n_envs == 1:
+        return _make_one(config, scenario)
+    if config.env_id is None:
+        from rl.vec_env import make_sb3_vec_env
+
+        return make_sb3_vec_env(config.n_envs, config.world, scenario, observation=OBSERVATION,
+                                layout_seeds=config.layout_seeds)
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    return DummyVecEnv([lambda: _make_one(config, scenario) for _ in range(config.n_envs)])
 
 
 def _training_env(scenario_or_env: Any, config: DeepConfig) -> tuple[Any, Scenario | None]:
     """The environment to train on, and the scenario it was built from (if it was)."""
     if isinstance(scenario_or_env, Scenario):
-        env = make_env(config.world, scenario_or_env, observation=OBSERVATION, layout_seeds=config.layout_seeds)
-        return env, scenario_or_env
-    if config.layout_seeds is not None:
-        raise ConfigError(
-            "layout_seeds apply when training on a Scenario; an environment given as such keeps its own layouts",
-            "layout_seeds",
-        )
-    if config.world != GRID:
-        raise ConfigError(
-            f"world = {config.world!r} applies when training on a Scenario; an environment given as such is its "
-            "own world",
-            "world",
-        )
+        return _vector_env(config, scenario_or_env), scenario_or_env
+    for name, default in (("layout_seeds", None), ("world", GRID), ("env_id", None), ("n_envs", 1)):
+        if getattr(config, name) != default:
+            raise ConfigError(
+                f"{name} applies when training on a Scenario; an environment given as such is trained as it is",
+                name,
+            )
     if not hasattr(scenario_or_env, "observation_space") or not hasattr(scenario_or_env, "step"):
         raise ConfigError(
             f"train_deep trains on a Scenario or a Gymnasium environment, got {type(scenario_or_env).__name__}", "env"
@@ -329,6 +436,45 @@ def _training_env(scenario_or_env: Any, config: DeepConfig) -> tuple[Any, Scenar
     return scenario_or_env, None
 
 
+def _new_model(config: DeepConfig, env: Any, scenario: Scenario | None) -> Any:
+    """The untrained SB3 model of ``config`` on ``env``; a one-line error for settings SB3
+    refuses or actions it cannot take."""
+    cls = _algorithm_class(config.algorithm)
+    try:
+        return cls("MlpPolicy", env, seed=config.seed, device="cpu", policy_kwargs=dict(config.policy_kwargs) or None,
+                   verbose=0, **config.hyperparams)
+    except (TypeError, ValueError, AssertionError, RuntimeError, UnboundLocalError) as exc:
+        if "action spaces" in str(exc) or "action space" in str(exc).lower() and "support" in str(exc).lower():
+            whose = f"the {config.world} world's actions" if scenario is not None else "the environment's actions"
+            raise ConfigError(f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world") from None
+        raise ConfigError(f"{config.algorithm} rejected its settings: {type(exc).__name__}: {exc}",
+                          "hyperparams") from None
+
+
+def rollout_steps(config: DeepConfig) -> int:
+    """Environment steps between two points where training can stop: an on-policy
+    algorithm's rollout (``n_envs * n_steps``), one step of every copy otherwise."""
+    cls = _algorithm_class(config.algorithm)
+    from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+
+    if issubclass(cls, OnPolicyAlgorithm):
+        n_steps = config.hyperparams.get("n_steps", inspect.signature(cls.__init__).parameters["n_steps"].default)
+        return config.n_envs * int(n_steps)
+    return config.n_envs
+
+
+def checkpoint_exact(config: DeepConfig, steps: int) -> bool:
+    """Whether the model a run of ``config`` holds after ``steps`` steps is, bit for bit,
+    the model of the same run with ``timesteps = steps``: true when ``steps`` ends a rollout
+    and nothing in the algorithm depends on the total (PPO, MaskablePPO and SAC with
+    constant schedules; not DQN, whose exploration decays over a share of the total)."""
+    if steps % rollout_steps(config) or steps > config.timesteps:
+        return False
+    if _file_stem(config.algorithm) == "dqn":
+        return False
+    return not any(callable(v) for v in config.hyperparams.values())
+
+
 def train_deep(
     algorithm: str,
     scenario_or_env: Scenario | Any,
@@ -339,83 +485,170 @@ def train_deep(
     policy_kwargs: Mapping[str, Any] | None = None,
     layout_seeds: Sequence[int] | None = None,
     world: str = GRID,
+    n_envs: int = 1,
+    env_id: str | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    checkpoints: Mapping[int, Callable[[Any], None]] | None = None,
 ) -> DeepResult:
-    """Train ``algorithm`` (``"ppo"``, ``"dqn"``, ``"sac"``) for ``timesteps`` environment steps.
+    """Train ``algorithm`` (:data:`DEEP_ALGORITHMS`) for ``timesteps`` environment steps.
 
-    On a :class:`~swiptopt.Scenario`: the environment of ``world`` (:func:`swiptopt.worlds.make_env`:
-    the grid's :class:`~swiptopt.env.AuvSwiptEnv` with the vector observation, or the
-    continuous world's env), on the scenario's layout or, with ``layout_seeds``, on one of
-    those drawn per episode (a policy for many layouts). DQN needs the grid's discrete
-    actions and SAC the continuous world's box; the other pairings are refused in one line.
-    On a Gymnasium environment: that environment as it is (any with a Box observation; the
-    benchmarks train on CartPole this way). ``hyperparams`` are SB3 constructor arguments,
-    ``policy_kwargs`` SB3's. The same arguments give the same model, bit for bit (see the
-    module docstring).
+    On a :class:`~swiptopt.Scenario`: ``n_envs`` copies of the environment of ``world``
+    (:func:`swiptopt.worlds.make_env`, the vector observation) or of the registered
+    ``env_id``, on the scenario's layout or, with ``layout_seeds``, on one of those drawn per
+    episode (a policy for many layouts). DQN needs the grid's discrete actions and SAC the
+    continuous world's box; the other pairings are refused in one line. On a Gymnasium
+    environment: that environment as it is (any with a Box observation). ``hyperparams`` are
+    SB3 constructor arguments, ``policy_kwargs`` SB3's. ``checkpoints`` maps step counts to
+    functions called with the model when training reaches them (between rollouts). The same
+    arguments give the same model, bit for bit (see the module docstring).
     """
-    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world)
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world,
+                        n_envs, env_id, env_kwargs or {})
     config.check_hyperparams()
-    env, scenario = _training_env(scenario_or_env, config)
     pin_torch()
-    cls = _algorithm_class(config.algorithm)
+    env, scenario = _training_env(scenario_or_env, config)
+    model = _new_model(config, env, scenario)
+    log, saver = _callbacks(checkpoints or {})
+    start, cpu = time.perf_counter(), time.process_time()
     try:
-        model = cls(
-            "MlpPolicy",
-            env,
-            seed=config.seed,
-            device="cpu",
-            policy_kwargs=dict(config.policy_kwargs) or None,
-            verbose=0,
-            **config.hyperparams,
-        )
-    except (TypeError, ValueError, AssertionError) as exc:
-        if "action spaces" in str(exc):  # SB3's check of the algorithm against the env's actions
-            whose = f"the {config.world} world's actions" if scenario is not None else "the environment's actions"
-            raise ConfigError(f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world") from None
-        raise ConfigError(f"{config.algorithm} rejected its settings: {exc}", "hyperparams") from None
-    log = _episode_log_callback()
-    start = time.perf_counter()
-    model.learn(total_timesteps=config.timesteps, callback=log, progress_bar=False)
-    seconds = time.perf_counter() - start
+        model.learn(total_timesteps=config.timesteps, callback=[log, saver], progress_bar=False)
+    except (ValueError, RuntimeError, UnboundLocalError) as exc:  # settings SB3 accepted but cannot train with
+        raise ConfigError(f"{config.algorithm} failed to train with its settings: {type(exc).__name__}: {exc}",
+                          "hyperparams") from None
     return DeepResult(
         model=model,
         config=config,
         config_hash=None if scenario is None else deep_config_hash(config, scenario),
-        train_seconds=seconds,
+        train_seconds=time.perf_counter() - start,
         episode_returns=np.asarray(log.returns, dtype=float),
+        cpu_seconds=time.process_time() - cpu,
     )
 
 
-def save_deep(result: DeepResult | Any, path: str | Path) -> Path:
-    """Save a model (or a :class:`DeepResult`'s) in SB3's ``.zip`` format at ``path``.
+# ------------------------------------------------------------------ weights files
 
-    Written to a temporary file beside it and renamed, so ``path`` is either absent or whole
-    (two processes saving the same model leave one whole file). A result's configuration
-    hash travels in the file (:data:`HASH_ATTRIBUTE`), so :func:`load_deep` can check it.
+
+def file_sha256(path: str | Path) -> str:
+    """The hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _atomic_write(path: Path, write: Callable[[Any], None]) -> None:
+    """Write ``path`` through a temporary file beside it, renamed into place: ``path`` is
+    either absent, as before, or whole."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as handle:
+            write(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def save_weights(model: Any, path: str | Path, header: Mapping[str, Any]) -> str:
+    """Save the network weights of an SB3 model (its policy's ``state_dict``) at ``path`` as
+    a ``.npz`` of float arrays with a JSON ``header`` (plain data), atomically; returns the
+    file's SHA-256. Nothing in the file is code: :func:`load_weights` reads it with
+    ``allow_pickle=False``."""
+    arrays = {f"param/{name}": tensor.detach().cpu().numpy() for name, tensor in model.policy.state_dict().items()}
+    text = json.dumps({"format": WEIGHTS_FORMAT, **header}, sort_keys=True, allow_nan=False)
+    arrays["header"] = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+    path = Path(path)
+    _atomic_write(path, lambda handle: np.savez(handle, **arrays))
+    return file_sha256(path)
+
+
+def read_weights(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The header and the arrays of a weights file; a :class:`~swiptopt.ConfigError` naming
+    the file for anything else (it is never unpickled)."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except (OSError, ValueError, EOFError, KeyError) as exc:  # zip and npy format errors
+        raise ConfigError(f"{path} is not a swiptopt weights file: {type(exc).__name__}: {exc}", "path") from None
+    except Exception as exc:  # zipfile.BadZipFile and the like
+        raise ConfigError(f"{path} is not a swiptopt weights file: {type(exc).__name__}: {exc}", "path") from None
+    raw = arrays.pop("header", None)
+    try:
+        header = json.loads(bytes(np.asarray(raw, dtype=np.uint8)).decode("utf-8")) if raw is not None else None
+    except (ValueError, UnicodeDecodeError, TypeError):
+        header = None
+    if not isinstance(header, dict) or header.get("format") != WEIGHTS_FORMAT:
+        raise ConfigError(f"{path} is not a swiptopt weights file (no {WEIGHTS_FORMAT} header)", "path")
+    params = {}
+    for name, value in arrays.items():
+        if not name.startswith("param/") or value.dtype.kind not in "fiub":
+            raise ConfigError(f"{path}: unexpected entry {name!r} ({value.dtype}) in a weights file", "path")
+        params[name[len("param/"):]] = value
+    return header, params
+
+
+def load_weights(path: str | Path, config: DeepConfig, scenario: Scenario, *, config_hash: str | None = None) -> Any:
+    """The SB3 model of ``config`` with the weights of the file at ``path``.
+
+    The model is built afresh from the configuration (on one copy of its environment) and
+    its policy given the file's arrays: a file whose header names another configuration
+    (``config_hash``), or whose arrays do not fit the network, is a
+    :class:`~swiptopt.ConfigError` naming the file.
+    """
+    import torch
+
+    header, params = read_weights(path)
+    if config_hash is not None and header.get("config_hash") != config_hash:
+        raise ConfigError(f"{path} holds a model trained for another configuration than {config_hash[:12]}", "path")
+    pin_torch()
+    env = _make_one(config, scenario)
+    model = _new_model(config, env, scenario)
+    try:
+        model.policy.load_state_dict({name: torch.from_numpy(np.array(value)) for name, value in params.items()},
+                                     strict=True)
+    except (RuntimeError, ValueError, TypeError) as exc:
+        raise ConfigError(f"{path}: its weights do not fit the {config.algorithm} network: {exc}".splitlines()[0],
+                          "path") from None
+    model.policy.set_training_mode(False)
+    return model
+
+
+# ------------------------------------------------------------------ SB3 zips (user files)
+
+
+def save_deep(result: DeepResult | Any, path: str | Path) -> Path:
+    """Save a model (or a :class:`DeepResult`'s) in SB3's ``.zip`` format at ``path``, atomically.
+
+    A result's configuration hash travels in the file (:data:`HASH_ATTRIBUTE`). SB3's zips
+    hold pickles: :func:`load_deep` runs what a zip holds, so share weights files
+    (:func:`save_weights`) rather than zips.
     """
     model = result.model if isinstance(result, DeepResult) else result
     if isinstance(result, DeepResult) and result.config_hash is not None:
         setattr(model, HASH_ATTRIBUTE, result.config_hash)
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            model.save(f)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    _atomic_write(path, model.save)
     return path
 
 
-def load_deep(path: str | Path, algorithm: str, *, config_hash: str | None = None) -> Any:
-    """Load an SB3 model of ``algorithm`` saved by :func:`save_deep` (on the CPU).
+def load_deep(path: str | Path, algorithm: str, *, config_hash: str | None = None, sha256: str | None = None) -> Any:
+    """Load an SB3 model of ``algorithm`` saved in SB3's ``.zip`` format (on the CPU).
 
-    A missing file, one that is not a saved ``algorithm`` model, or (with ``config_hash``)
-    one saved for another configuration is a :class:`~swiptopt.ConfigError` naming the path.
+    **A zip is code**: SB3's ``load`` unpickles its entries, so loading a zip from elsewhere
+    runs whatever it holds. Give ``sha256`` (the digest you recorded when you saved it) and
+    a file with other bytes is refused before anything in it is read. A missing file, one
+    that is not a saved ``algorithm`` model, or (with ``config_hash``) one saved for another
+    configuration is a :class:`~swiptopt.ConfigError` naming the path.
     """
     _check_algorithm(algorithm)
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"no saved model at {path}", "path")
+    if sha256 is not None and file_sha256(path) != sha256:
+        raise ConfigError(f"{path} is not the file recorded: its SHA-256 differs from {sha256[:12]}", "sha256")
     cls = _algorithm_class(algorithm)
     pin_torch()
     try:
@@ -427,12 +660,14 @@ def load_deep(path: str | Path, algorithm: str, *, config_hash: str | None = Non
     return model
 
 
+# ------------------------------------------------------------------ model directories
+
+
 @contextlib.contextmanager
 def _exclusive(path: Path) -> Any:
-    """Hold an exclusive lock on ``path`` (created if needed) while the block runs, so
-    processes that want the same model train it once: the others wait, then load it.
-    Where ``fcntl`` is missing (Windows) there is no lock: the atomic save still leaves one
-    whole file, and a model may be trained twice, identically."""
+    """Hold an exclusive lock on ``path`` (created if needed) while the block runs.
+    Where ``fcntl`` is missing (Windows) there is no lock: the atomic writes still leave
+    whole files, and a model may be trained twice, identically."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
@@ -446,10 +681,62 @@ def _exclusive(path: Path) -> Any:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+def read_manifest(directory: str | Path) -> dict[str, dict[str, Any]]:
+    """File name -> record (``sha256``, ``config_hash``, ...) of a model directory's
+    manifest; empty when there is none or it cannot be read (nothing is then trusted)."""
+    try:
+        data = json.loads((Path(directory) / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return {}
+    models = data.get("models") if isinstance(data, dict) else None
+    if not isinstance(models, dict):
+        return {}
+    return {name: rec for name, rec in models.items() if isinstance(rec, dict) and isinstance(rec.get("sha256"), str)}
+
+
+def record_in_manifest(directory: str | Path, name: str, record: Mapping[str, Any]) -> None:
+    """Add ``name``'s record to the directory's manifest (read, update and replace it
+    atomically under the directory's manifest lock)."""
+    directory = Path(directory)
+    with _exclusive(directory / (MANIFEST + ".lock")):
+        models = read_manifest(directory)
+        models[name] = dict(record)
+        text = json.dumps({"format": 1, "models": models}, indent=1, sort_keys=True)
+        _atomic_write(directory / MANIFEST, lambda handle: handle.write(text.encode("utf-8")))
+
+
 def model_path(directory: str | Path, config: DeepConfig, scenario: Scenario) -> Path:
     """Where :func:`train_or_load_deep` keeps the model of ``config`` on ``scenario``:
-    ``directory/<algorithm>-<deep_config_hash>.zip``."""
-    return Path(directory) / f"{_file_stem(config.algorithm)}-{deep_config_hash(config, scenario)}.zip"
+    ``directory/<algorithm>-<deep_config_hash>.npz``."""
+    return Path(directory) / f"{_file_stem(config.algorithm)}-{deep_config_hash(config, scenario)}{WEIGHTS_SUFFIX}"
+
+
+def _trusted(directory: Path, name: str) -> tuple[Path | None, str]:
+    """The file ``name`` of ``directory`` if its bytes are the ones its manifest records,
+    else None and why not ("" when there is no such file)."""
+    path = directory / name
+    if not path.is_file():
+        return None, ""
+    record = read_manifest(directory).get(name)
+    if record is None:
+        return None, f"{path} is not recorded in {directory / MANIFEST}"
+    if file_sha256(path) != record["sha256"]:
+        return None, f"{path} differs from the file recorded in {directory / MANIFEST} (SHA-256)"
+    return path, ""
+
+
+def find_model(directories: Iterable[str | Path], config: DeepConfig, scenario: Scenario) -> tuple[Path | None, str]:
+    """The first trusted weights file of ``config`` in ``directories`` (each vouched for by
+    its own manifest), and what was wrong with the untrusted ones seen before it."""
+    name = model_path(".", config, scenario).name
+    notes = []
+    for directory in directories:
+        path, why = _trusted(Path(directory), name)
+        if path is not None:
+            return path, "; ".join(notes)
+        if why:
+            notes.append(why)
+    return None, "; ".join(notes)
 
 
 def train_or_load_deep(
@@ -463,40 +750,71 @@ def train_or_load_deep(
     policy_kwargs: Mapping[str, Any] | None = None,
     layout_seeds: Sequence[int] | None = None,
     world: str = GRID,
+    n_envs: int = 1,
+    env_id: str | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    checkpoints: Sequence[int] = (),
+    pretrained: Sequence[str | Path] = (),
 ) -> DeepResult:
-    """:func:`train_deep`, reusing ``directory/<algorithm>-<hash>.zip`` when it exists.
+    """:func:`train_deep`, reusing a stored model of the same configuration when there is one.
 
-    The file is named by :func:`deep_config_hash`, so a stored model is reused only for the
-    very configuration (and library versions) it was trained with; a new one is saved there.
-    Processes asking for the same model at once train it once (a lock file beside it): the
-    first trains and saves, the others wait and load. A file there that cannot be loaded,
-    or holds a model of another configuration, is replaced by a fresh training (the result's
-    ``note`` says so): the hash names the configuration, so the new model is the right one.
+    A model is looked for under its hashed name (:func:`model_path`) in ``directory``, then
+    in the ``pretrained`` directories, and loaded only when the directory's manifest
+    records that file's SHA-256; otherwise it is trained and saved in ``directory`` with its
+    digest recorded, and the result's ``note`` says why a file found was not used. Processes
+    asking for the same model at once train it once (a lock file beside it). ``checkpoints``:
+    smaller step counts at which the run also saves its model, each under the name of the
+    run of that many steps (only counts where that model is the same, bit for bit:
+    :func:`checkpoint_exact`; others are refused).
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
-    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world)
+    config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world,
+                        n_envs, env_id, env_kwargs or {})
+    key = deep_config_hash(config, scenario)
+    directory = Path(directory)
+    path = model_path(directory, config, scenario)
+    directory.mkdir(parents=True, exist_ok=True)
+    kwargs = dict(hyperparams=hyperparams, policy_kwargs=policy_kwargs, layout_seeds=layout_seeds, world=world,
+                  n_envs=n_envs, env_id=env_id, env_kwargs=env_kwargs)
+    savers = {}
+    for steps in sorted(set(int(s) for s in checkpoints) - {config.timesteps}):
+        if not checkpoint_exact(config, steps):
+            raise ConfigError(
+                f"checkpoint at {steps} steps: a {algorithm} run stopped there is not the run of {steps} steps "
+                f"(it must end a rollout of {rollout_steps(config)} steps and the algorithm must not depend on "
+                "the total)", "checkpoints")
+        savers[steps] = _checkpoint_saver(directory, config.replace(timesteps=steps), scenario)
+    with _exclusive(path.with_name(path.name + ".lock")):
+        found, note = find_model([directory, *pretrained], config, scenario)
+        if found is not None:
+            try:
+                model = load_weights(found, config, scenario, config_hash=key)
+            except ConfigError as exc:
+                note = "; ".join(filter(None, [note, str(exc)]))
+            else:
+                return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found,
+                                  sha256=file_sha256(found), note=note)
+        result = train_deep(algorithm, scenario, timesteps, seed, checkpoints=savers, **kwargs)
+        digest = _save_recorded(directory, path, result.model, config, key)
+    why = f"retrained: {note}" if note else ""
+    return dataclasses.replace(result, config_hash=key, note=why, path=path, sha256=digest)
+
+
+def _save_recorded(directory: Path, path: Path, model: Any, config: DeepConfig, key: str) -> str:
+    """Save ``model``'s weights at ``path`` and record their digest in the manifest."""
+    header = {"algorithm": config.algorithm, "config_hash": key, "config": config.to_dict()}
+    digest = save_weights(model, path, json.loads(json.dumps(header, default=_canonical)))
+    record_in_manifest(directory, path.name, {"sha256": digest, "config_hash": key, "algorithm": config.algorithm,
+                                              "timesteps": config.timesteps})
+    return digest
+
+
+def _checkpoint_saver(directory: Path, config: DeepConfig, scenario: Scenario) -> Callable[[Any], None]:
     key = deep_config_hash(config, scenario)
     path = model_path(directory, config, scenario)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    note = ""
-    with _exclusive(path.with_name(path.name + ".lock")):
-        if path.is_file():
-            try:
-                model = load_deep(path, algorithm, config_hash=key)
-            except ConfigError as exc:
-                note = f"retrained: the stored model could not be used ({exc})"
-            else:
-                return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True)
-        result = train_deep(
-            algorithm,
-            scenario,
-            timesteps,
-            seed,
-            hyperparams=hyperparams,
-            policy_kwargs=policy_kwargs,
-            layout_seeds=layout_seeds,
-            world=world,
-        )
-        save_deep(result, path)
-    return dataclasses.replace(result, config_hash=key, note=note)
+
+    def save(model: Any) -> None:
+        _save_recorded(directory, path, model, config, key)
+
+    return save

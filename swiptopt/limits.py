@@ -48,6 +48,13 @@ class Limits:
     max_evaluation_episodes: int = 10_000_000
     """Evaluation episodes of one experiment (tasks x episodes): each is a record in the
     results store."""
+    max_buffer_values: int = 250_000_000
+    """Float values in one deep-RL agent's rollout or replay buffer (observations of 4 + 6
+    n_nodes values; a replay buffer keeps the next observation too): 1 GB of float32 at
+    the limit, allocated when the agent is built."""
+    max_network_parameters: int = 50_000_000
+    """Parameters of one deep-RL agent's networks (policy and value or Q networks; about):
+    200 MB of float32 at the limit, with the optimiser's state twice that."""
 
 
 #: The environment variable that overrides each limit.

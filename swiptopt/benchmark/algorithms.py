@@ -121,6 +121,11 @@ class BuildContext:
     training_layouts: tuple[int, ...] | None = None
     models_dir: str | None = None
     world: str = GRID
+    checkpoints: tuple[int, ...] = ()
+    """Other budgets of the task's training lineage: step counts at which its training also
+    saves its model (for the tasks that will load it)."""
+    pretrained: tuple[str, ...] = ()
+    """Read-only directories of models trained elsewhere, each vouched for by its manifest."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,9 @@ class Algorithm:
     trains_model: bool = False
     check: Callable[[dict[str, Any]], None] | None = None
     """Checks between settings (called with the resolved settings; raises ConfigError)."""
+    check_scenario: Callable[[dict[str, Any], Any], None] | None = None
+    """Checks that depend on the scenario (called with the resolved settings and each
+    scenario of the experiment before any task runs; raises ConfigError): sizes."""
     worlds: tuple[str, ...] = (GRID,)
     uses_ompl: Callable[[dict[str, Any]], bool] | None = None
 
@@ -278,9 +286,12 @@ PER_LAYOUT, ACROSS_LAYOUTS = "per_layout", "across_layouts"
 EXPANSION_SETTINGS = (TRAINING_SEEDS,)
 
 _DEEP_COMMON = {
-    "timesteps": Setting(default=100_000, kind="int", lo=1, hi=10**9, quick=1024,
-                         doc="environment steps of training (per model)"),
-    "net_arch": Setting(default=[64, 64], kind=INTS, lo=1, hi=4096,
+    "timesteps": Setting(default=1_000_000, kind="int", lo=1, hi=10**9, quick=1024,
+                         doc="environment steps of training, all copies together (an on-policy algorithm "
+                             "collects whole rollouts, so it trains up to the next multiple of n_envs x n_steps)"),
+    "n_envs": Setting(default=16, kind="int", lo=1, hi=1024, quick=2,
+                      doc="copies of the environment stepped together (copy i seeded with the task's seed + i)"),
+    "net_arch": Setting(default=[128, 128], kind=INTS, lo=1, hi=4096,
                         doc="hidden layer widths of the policy (and value) network"),
     "learning_rate": Setting(default=None, lo=0, lo_open=True, hi=1, optional=True,
                              doc="optimiser step size (default: Stable-Baselines3's for the algorithm)"),
@@ -295,33 +306,73 @@ _DEEP_COMMON = {
 #: SB3 constructor arguments under another name in the settings.
 _SB3_NAMES = {"discount": "gamma"}
 #: Settings of the deep algorithms that are not SB3 constructor arguments.
-_NOT_SB3 = ("timesteps", "net_arch", TRAINING, TRAINING_SEEDS)
+_NOT_SB3 = ("timesteps", "n_envs", "net_arch", TRAINING, TRAINING_SEEDS)
 
 _PPO = {
-    # SB3's defaults, written out so that --quick can shorten the rollouts
-    "n_steps": Setting(default=2048, kind="int", lo=2, hi=1_000_000, quick=256, doc="steps per rollout"),
-    "batch_size": Setting(default=64, kind="int", lo=2, hi=1_000_000, doc="minibatch size"),
+    "n_steps": Setting(default=256, kind="int", lo=2, hi=1_000_000, quick=64,
+                       doc="steps per copy per rollout (a rollout is n_envs x n_steps steps)"),
+    "batch_size": Setting(default=512, kind="int", lo=2, hi=1_000_000, quick=64, doc="minibatch size"),
+    "n_epochs": Setting(default=10, kind="int", lo=1, hi=1000, quick=2, doc="passes over each rollout"),
+    "ent_coef": Setting(default=0.01, lo=0, hi=1, doc="entropy bonus coefficient"),
+    "gae_lambda": Setting(default=None, lo=0, hi=1, optional=True, doc="GAE lambda (default: SB3's, 0.95)"),
+    "clip_range": Setting(default=None, lo=0, lo_open=True, hi=10, optional=True,
+                          doc="PPO's clipping range (default: SB3's, 0.2)"),
 }
 _DQN = {
-    # SB3's default buffer (a million transitions of 4 + 6 n floats) needs gigabytes; a
-    # tenth of it holds the whole of a 100 000-step run
-    "buffer_size": Setting(default=100_000, kind="int", lo=1, hi=10**8, doc="replay buffer, transitions"),
-    "learning_starts": Setting(default=None, kind="int", lo=0, hi=10**9, optional=True,
-                               doc="steps before learning starts (default: SB3's, 100)"),
-    "exploration_fraction": Setting(default=None, lo=0, lo_open=True, hi=1, optional=True,
-                                    doc="fraction of training over which epsilon decays (default: SB3's, 0.1)"),
+    "buffer_size": Setting(default=200_000, kind="int", lo=1, hi=10**8, quick=2000, doc="replay buffer, transitions"),
+    "learning_starts": Setting(default=10_000, kind="int", lo=0, hi=10**9, quick=256,
+                               doc="steps before learning starts"),
+    "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, quick=32, doc="minibatch size"),
+    "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000,
+                          doc="updates every train_freq steps of every copy (n_envs x train_freq steps)"),
+    "gradient_steps": Setting(default=4, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
+    "target_update_interval": Setting(default=2000, kind="int", lo=1, hi=10**9,
+                                      doc="steps between target network updates"),
+    "exploration_fraction": Setting(default=0.2, lo=0, lo_open=True, hi=1,
+                                    doc="fraction of training over which epsilon decays"),
+    "exploration_final_eps": Setting(default=0.02, lo=0, hi=1, doc="epsilon at the end of its decay"),
 }
-
-
 _SAC = {
-    # a tenth of SB3's million-transition default holds the whole of a 100 000-step run
-    "buffer_size": Setting(default=100_000, kind="int", lo=1, hi=10**8, quick=1000, doc="replay buffer, transitions"),
-    "learning_starts": Setting(default=1000, kind="int", lo=0, hi=10**9, quick=100,
+    "buffer_size": Setting(default=300_000, kind="int", lo=1, hi=10**8, quick=2000, doc="replay buffer, transitions"),
+    "learning_starts": Setting(default=10_000, kind="int", lo=0, hi=10**9, quick=256,
                                doc="steps of uniform random actions before learning starts"),
-    "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, doc="minibatch size (SB3's default)"),
-    "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000, doc="environment steps between updates"),
-    "gradient_steps": Setting(default=1, kind="int", lo=1, hi=1_000_000, doc="gradient steps per update"),
+    "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, quick=32, doc="minibatch size (SB3's default)"),
+    "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000,
+                          doc="updates every train_freq steps of every copy (n_envs x train_freq steps)"),
+    "gradient_steps": Setting(default=4, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
 }
+
+#: Bytes of a float32 value in SB3's buffers.
+_FLOAT_BYTES = 4
+
+
+def _check_deep_sizes(name: str, rollout: bool) -> Callable[[dict[str, Any], Any], None]:
+    """The sizes of a deep-RL task for its scenario, checked before any task runs: the
+    network (parameters) and the buffer SB3 allocates at construction (an on-policy
+    algorithm's rollout buffer holds n_envs x n_steps observations whatever ``timesteps``;
+    a replay buffer holds buffer_size observations and the next ones)."""
+
+    def check(settings: dict[str, Any], scenario: Any) -> None:
+        from swiptopt.kernel import VECTOR_NODE_FEATURES
+
+        obs = 4 + VECTOR_NODE_FEATURES * scenario.n_nodes
+        widths = [obs, *settings["net_arch"], 8]
+        parameters = sum((a + 1) * b for a, b in zip(widths, widths[1:])) * (2 if rollout else 3)
+        check_size("max_network_parameters", parameters,
+                   f"{_where(name, 'net_arch')} = {settings['net_arch']}: network parameters "
+                   f"(observation {obs} -> {' -> '.join(map(str, settings['net_arch']))}, about)", "net_arch")
+        if rollout:
+            values = settings["n_envs"] * settings["n_steps"] * obs
+            what = (f"{_where(name, 'n_steps')} x n_envs = {settings['n_steps']} x {settings['n_envs']}: rollout "
+                    f"buffer values ({obs} per observation, {values * _FLOAT_BYTES / 2**30:,.2f} GiB)")
+            check_size("max_buffer_values", values, what, "n_steps")
+        else:
+            values = 2 * settings["buffer_size"] * obs
+            what = (f"{_where(name, 'buffer_size')} = {settings['buffer_size']:,}: replay buffer values (2 x "
+                    f"{obs} per transition, {values * _FLOAT_BYTES / 2**30:,.2f} GiB)")
+            check_size("max_buffer_values", values, what, "buffer_size")
+
+    return check
 
 
 def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
@@ -335,7 +386,7 @@ def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path)."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-        from rl.deep import train_deep, train_or_load_deep
+        from rl.deep import DeepConfig, checkpoint_exact, train_deep, train_or_load_deep
 
         scenario = context.scenario
         layouts = None
@@ -347,19 +398,27 @@ def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
             scenario = scenario.replace(layout_seed=layouts[0])
             seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
         arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
-                         layout_seeds=layouts, world=context.world)
+                         layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"])
         if context.models_dir is None:
             return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
-        return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed, **arguments)
+        config = DeepConfig(sb3, settings["timesteps"], seed, arguments["hyperparams"], arguments["policy_kwargs"],
+                            layouts, context.world, settings["n_envs"])
+        checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps)]
+        return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
+                                  checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
 
     return build
 
 
 def _deep_record(policy: Any, env: Any) -> dict[str, Any]:
     """A deep-RL task's model: its hash, its training seed, whether it was loaded, the
-    training time (0 when loaded) and what happened to an unusable stored model."""
+    training time (0 when loaded), the model file's name and SHA-256, and what happened to
+    an unusable stored model."""
     out = {"model": policy.config_hash, "training_seed": policy.config.seed, "model_loaded": policy.loaded,
-           "train_seconds": policy.train_seconds}
+           "train_seconds": policy.train_seconds, "train_cpu_seconds": policy.cpu_seconds}
+    if getattr(policy, "path", None) is not None:
+        out["model_file"] = policy.path.name
+        out["model_sha256"] = policy.sha256
     if getattr(policy, "note", ""):
         out["model_note"] = policy.note
     return out
@@ -371,15 +430,18 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
 
     ``sb3`` is ``"ppo"``, ``"dqn"``, ``"sac"`` or a class as ``"package.module:Class"`` (e.g.
     ``"stable_baselines3:A2C"``). It gets the common deep-RL settings (``timesteps``,
-    ``net_arch``, ``learning_rate``, ``discount``, ``training``, ``training_seeds``) and
-    ``settings`` (more SB3 constructor arguments, under their own names). Models are kept
-    under the results directory and reused when a task's configuration matches. ``name``
-    defaults to the registered name (the entry point's or the ``[plugins]`` key); ``worlds``
-    are the worlds whose actions it can take (the grid's discrete moves, the continuous
-    world's box).
+    ``n_envs``, ``net_arch``, ``learning_rate``, ``discount``, ``training``,
+    ``training_seeds``) and ``settings`` (more SB3 constructor arguments, under their own
+    names). Models are kept under the results directory and reused when a task's
+    configuration matches. ``name`` defaults to the registered name (the entry point's or the
+    ``[plugins]`` key); ``worlds`` are the worlds whose actions it can take (the grid's
+    discrete moves, the continuous world's box).
     """
-    return Algorithm(name or label.lower(), label, "rl", {**_DEEP_COMMON, **(settings or {})}, _deep(sb3),
-                     _deep_record, observation="vector", modules=("torch",), trains_model=True, worlds=worlds)
+    settings = {**_DEEP_COMMON, **(settings or {})}
+    rollout = "n_steps" in settings
+    return Algorithm(name or label.lower(), label, "rl", settings, _deep(sb3), _deep_record, observation="vector",
+                     modules=("torch",), trains_model=True, worlds=worlds,
+                     check_scenario=_check_deep_sizes(name or label.lower(), rollout) if rollout or "buffer_size" in settings else None)
 
 
 _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
@@ -689,7 +751,10 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
     ``settings`` are resolved (:func:`resolve_settings`); ``where`` says which scenario (a
     sweep point) for the message.
     """
-    for key, spec in get_algorithm(name).settings.items():
+    algorithm = get_algorithm(name)
+    if algorithm.check_scenario is not None:
+        algorithm.check_scenario(settings, scenario)
+    for key, spec in algorithm.settings.items():
         value = settings.get(key)
         if spec.hi_of is None or value is None:
             continue

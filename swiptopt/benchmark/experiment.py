@@ -25,7 +25,7 @@ File format::
     preset = "paper"
     n_nodes = 25
 
-    [sweep]              # optional: one or more Scenario fields and their values
+    [sweep]              # optional: Scenario fields, or algorithm settings, and their values
     n_nodes = [10, 20, 30]
 
     [algorithms.q_learning]      # one table per algorithm, with its settings
@@ -34,6 +34,11 @@ File format::
 
     [figure]             # optional: what `swiptopt plot` draws
     metric = "data_bits"
+
+A sweep key is a Scenario field or a setting of some of the experiment's algorithms
+(``timesteps = [62500, 250000, 1000000]`` trains every deep-RL algorithm at each budget: a
+learning curve); a swept setting applies to the algorithms that have it, and the others'
+tasks are the same at every point (computed once).
 
 A top-level ``baseline = "random"`` (one of the experiment's algorithms) adds a second
 table: every other algorithm's mean over the baseline's on the same layouts, with a
@@ -82,6 +87,7 @@ from swiptopt.benchmark.algorithms import (
     TRAINING_SEEDS,
     check_settings_for,
     check_world_of,
+    get_algorithm,
     load_plugin,
     quick_settings,
     resolve_settings,
@@ -243,9 +249,9 @@ class Experiment:
             point = {k: self.sweep[k][i] for k, i in zip(keys, index)}
             built = self.scenario_for(point, self.layout_seeds()[0])
             where = f" at sweep point {point}" if point else ""
-            for name, settings in resolved.items():
-                check_settings_for(name, settings, built, where)
-            fingerprint = json.dumps(built.to_dict(), sort_keys=True)
+            for name in resolved:
+                check_settings_for(name, self.settings_at(name, point), built, where)
+            fingerprint = json.dumps([built.to_dict(), self._split(point)[1]], sort_keys=True)
             if fingerprint in seen:
                 key, i, j = next((k, i, j) for k, i, j in zip(keys, seen[fingerprint], index) if i != j)
                 a, b = self.sweep[key][i], self.sweep[key][j]
@@ -254,7 +260,9 @@ class Experiment:
             seen[fingerprint] = index
 
     def _check_training_layouts(self, resolved: dict[str, dict[str, Any]]) -> None:
-        across = [name for name, settings in resolved.items() if settings.get(TRAINING) == ACROSS_LAYOUTS]
+        swept = self.sweep.get(TRAINING) if isinstance(self.sweep, dict) else None
+        across = [name for name, settings in resolved.items() if settings.get(TRAINING) == ACROSS_LAYOUTS
+                  or (TRAINING in settings and isinstance(swept, list) and ACROSS_LAYOUTS in swept)]
         value = self.training_layouts
         if value is None:
             if across:
@@ -297,18 +305,50 @@ class Experiment:
     def _check_sweep(self) -> None:
         sweep = check_keys("[sweep]", self.sweep, "sweep")
         names = {f.name for f in dataclasses.fields(Scenario)}
+        settings = self._swept_settings_of()
         for key, values in sweep.items():
             if key == "world":
                 raise ConfigError("sweep.world: a sweep cannot change the world; run one experiment per world "
                                   "(world = ... at the top of each file)", "world")
-            if key not in names or key == "layout_seed":
+            if key == "layout_seed" or (key not in names and key not in settings):
+                known = sorted(names - {"layout_seed"} | set(settings))
                 raise ConfigError(
-                    f"sweep key {key!r}{did_you_mean(key, names)} is not a scenario field "
-                    "(layouts are set by 'layouts')",
+                    f"sweep key {key!r}{did_you_mean(key, known)} is neither a scenario field nor a setting of the "
+                    "experiment's algorithms (layouts are set by 'layouts')",
                     key,
                 )
+            if key in names and key in settings:
+                raise ConfigError(f"sweep key {key!r} is both a scenario field and a setting of "
+                                  f"{', '.join(settings[key])}: it cannot be swept", key)
             if not isinstance(values, list) or not values:
                 raise ConfigError(f"sweep.{key} must be a non-empty list of values", key)
+            for value in values if key in settings else ():
+                for name in settings[key]:
+                    try:
+                        resolve_settings(name, {**self.algorithms[name], key: value})
+                    except ConfigError as exc:
+                        raise ConfigError(f"sweep.{key} = {value!r} for {name}: {exc}", key) from None
+
+    def _swept_settings_of(self) -> dict[str, list[str]]:
+        """Setting name -> the experiment's algorithms that have it (the sweep keys that
+        are settings apply to those)."""
+        out: dict[str, list[str]] = {}
+        for name in self.algorithms:
+            for key in get_algorithm(name, self.plugins.get(name, "")).settings:
+                out.setdefault(key, []).append(name)
+        return out
+
+    def _split(self, point: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """A sweep point's scenario fields and its algorithm settings."""
+        names = {f.name for f in dataclasses.fields(Scenario)}
+        return ({k: v for k, v in point.items() if k in names}, {k: v for k, v in point.items() if k not in names})
+
+    def settings_at(self, name: str, point: dict[str, Any]) -> dict[str, Any]:
+        """Algorithm ``name``'s settings at sweep point ``point``, resolved (the point's
+        settings that the algorithm has override the experiment's)."""
+        schema = get_algorithm(name, self.plugins.get(name, "")).settings
+        swept = {k: v for k, v in self._split(point)[1].items() if k in schema}
+        return resolve_settings(name, {**self.algorithms[name], **swept})
 
     def _check_figure(self) -> None:
         figure = check_keys("[figure]", self.figure, "figure")
@@ -380,9 +420,20 @@ class Experiment:
             layouts=min(self.layouts, 2) if isinstance(self.layouts, int) else self.layouts[:2],
             seeds=1,
             episodes=min(self.episodes, 2),
-            sweep={k: v[:2] for k, v in self.sweep.items()},
+            sweep={k: self._quick_values(k, v[:2]) for k, v in self.sweep.items()},
             algorithms={name: quick_settings(name, settings) for name, settings in self.algorithms.items()},
         )
+
+    def _quick_values(self, key: str, values: list[Any]) -> list[Any]:
+        """A swept setting's first values under ``--quick``: numbers capped at the setting's
+        quick value times 1, 2, ... (so they stay distinct and in order), others as they are."""
+        owners = self._swept_settings_of().get(key)
+        if not owners or key in {f.name for f in dataclasses.fields(Scenario)}:
+            return values
+        spec = get_algorithm(owners[0], self.plugins.get(owners[0], "")).settings[key]
+        if spec.quick is None or spec.kind not in ("int", "float"):
+            return values
+        return [min(v, spec.quick * 2**i) if isinstance(v, (int, float)) else v for i, v in enumerate(values)]
 
     # ------------------------------------------------------------ expansion
 
@@ -392,7 +443,7 @@ class Experiment:
         return [dict(zip(keys, values)) for values in itertools.product(*(self.sweep[k] for k in keys))]
 
     def scenario_for(self, point: dict[str, Any], layout: int) -> Scenario:
-        values = {**self.scenario, **point, "layout_seed": layout}
+        values = {**self.scenario, **self._split(point)[0], "layout_seed": layout}
         try:
             return Scenario.from_dict(values)
         except ScenarioError as exc:
@@ -404,8 +455,8 @@ class Experiment:
         :meth:`seeds_of`). A task's settings leave out those that only shape the expansion
         (``training_seeds``); a task that trains across layouts carries them."""
         out = []
-        resolved = {name: resolve_settings(name, settings) for name, settings in self.algorithms.items()}
         for point in self.points():
+            resolved = {name: self.settings_at(name, point) for name in self.algorithms}
             for layout in self.layout_seeds():
                 scenario = self.scenario_for(point, layout).to_dict()
                 for name, settings in resolved.items():

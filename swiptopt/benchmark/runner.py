@@ -80,10 +80,26 @@ def models_dir_for(store_path: Any) -> str:
     return str(Path(store_path).resolve().parent / MODELS_SUBDIR)
 
 
+#: The key of a task dict sent to a worker that holds the step counts at which the task's
+#: training also saves its model (the other budgets of its lineage; not part of the task).
+CHECKPOINTS = "checkpoints"
+#: The key of a task dict that holds read-only directories of models trained elsewhere,
+#: each vouched for by its manifest (:func:`rl.deep.train_or_load_deep`'s ``pretrained``).
+PRETRAINED = "pretrained"
+
+
 def _split(task: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
-    """A task dict as sent to a worker: the task itself, and the models directory."""
+    """A task dict as sent to a worker: the task itself, and the models directory (the
+    checkpoints and pretrained directories stay out of the task too: see :func:`_routing`)."""
     task = dict(task)
+    task.pop(CHECKPOINTS, None)
+    task.pop(PRETRAINED, None)
     return task, task.pop(MODELS_DIR, None)
+
+
+def _routing(task: dict[str, Any]) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    """A task dict's checkpoints and pretrained model directories."""
+    return tuple(task.get(CHECKPOINTS, ())), tuple(task.get(PRETRAINED, ()))
 
 
 # ------------------------------------------------------------------------ one task
@@ -100,6 +116,7 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     from swiptopt.worlds import GRID, make_env
 
     start = time.perf_counter()
+    checkpoints, pretrained = _routing(task)
     task, models_dir = _split(task)
     t = Task(**task)
     algorithm = get_algorithm(t.algorithm, t.plugin)  # registers a plugin in this process
@@ -108,7 +125,7 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     # the continuous world has one observation (the vector); planners read the env itself
     env = make_env(t.world, scenario, observation=(algorithm.observation or "tabular") if grid else None)
     training = tuple(t.training_layouts) if t.training_layouts is not None else None
-    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world)
+    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world, checkpoints, pretrained)
     policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
     result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_OFFSET)
     extra: dict[str, Any] = task_extra(t.algorithm, policy, env)
@@ -345,7 +362,14 @@ def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str
             yield from _isolated([t for batch in lost for t in batch], workers)
 
 
-def _dask(batches: list[list[dict[str, Any]]], scheduler: str, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
+def _staged(stages: list[list[list[dict[str, Any]]]],
+            run: Callable[[list[list[dict[str, Any]]]], Iterator[list[dict[str, Any]]]]) -> Iterator[list[dict[str, Any]]]:
+    """The outcomes of each stage's batches, one stage run to its end before the next."""
+    for batches in stages:
+        yield from run(batches)
+
+
+def _dask(stages: list[list[list[dict[str, Any]]]], scheduler: str, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -367,19 +391,20 @@ def _dask(batches: list[list[dict[str, Any]]], scheduler: str, modules: tuple[st
         raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}", "scheduler") from None
     try:
         client.register_plugin(PrepareWorker(modules, watch_parent=cluster is not None))
-        pending = {client.submit(run_batch, b, pure=False): (b, False) for b in batches}
-        stream = as_completed(pending)
-        for future in stream:
-            batch, isolated = pending.pop(future)
-            try:
-                yield future.result()
-            except Exception as exc:  # the worker died under the batch (KilledWorker, a crash)
-                if isolated:
-                    yield [_failure(t, f"the Dask worker died running it: {one_line(exc)}") for t in batch]
-                else:
-                    retry = client.submit(run_batch_isolated, batch, pure=False)
-                    pending[retry] = (batch, True)
-                    stream.add(retry)
+        for batches in stages:
+            pending = {client.submit(run_batch, b, pure=False): (b, False) for b in batches}
+            stream = as_completed(pending)
+            for future in stream:
+                batch, isolated = pending.pop(future)
+                try:
+                    yield future.result()
+                except Exception as exc:  # the worker died under the batch (KilledWorker, a crash)
+                    if isolated:
+                        yield [_failure(t, f"the Dask worker died running it: {one_line(exc)}") for t in batch]
+                    else:
+                        retry = client.submit(run_batch_isolated, batch, pure=False)
+                        pending[retry] = (batch, True)
+                        stream.add(retry)
     finally:
         client.close()
         if cluster is not None:
@@ -389,42 +414,62 @@ def _dask(batches: list[list[dict[str, Any]]], scheduler: str, modules: tuple[st
 # ------------------------------------------------------------------------- a run
 
 
-def _model_of(task: Task) -> tuple[Any, ...] | None:
-    """What names the model a task trains (tasks that share it train it once), or None for
-    tasks that train no model worth scheduling apart."""
+def _lineage_of(task: Task) -> tuple[Any, ...] | None:
+    """What names the training run behind a task's model, all but its length: tasks of one
+    lineage differ only in ``timesteps`` (a learning curve's budgets) or in the layout they
+    are evaluated on (a model trained across layouts), so one run, saving its model at
+    every budget the lineage needs, serves them all. None for tasks that train nothing."""
     import json
 
     algorithm = _algorithm_of(task.to_dict())
     if algorithm is None or not algorithm.trains_model:
         return None
-    if task.training_layouts is None:
-        return (task.key,)  # a model of its own
     from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
 
+    settings = {k: v for k, v in task.settings.items() if k != "timesteps"}
+    if task.training_layouts is None:
+        return (task.algorithm, task.plugin, task.world, json.dumps([task.scenario, settings], sort_keys=True), task.seed)
     scenario = {k: v for k, v in task.scenario.items() if k != "layout_seed"}
-    return (task.algorithm, task.plugin, task.world, json.dumps([scenario, task.settings], sort_keys=True),
+    return (task.algorithm, task.plugin, task.world, json.dumps([scenario, settings], sort_keys=True),
             task.seed % SEEDS_PER_LAYOUT, tuple(task.training_layouts))
 
 
-def _batches(tasks: list[Task], workers: int, models_dir: str | None = None) -> list[list[dict[str, Any]]]:
-    """Batches of task dicts: first, one task per model to train, each alone (so the workers
-    train different models at once and the longest work starts first); then the rest in
-    small batches, at least ~8 per worker for load balance and at most 4 tasks each so a
-    killed run loses little."""
-    first: list[Task] = []
-    rest: list[Task] = []
-    models: set[tuple[Any, ...]] = set()
+def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
+             pretrained: tuple[str, ...] = ()) -> list[list[list[dict[str, Any]]]]:
+    """The tasks as stages of batches of task dicts, each stage run to its end before the
+    next starts. First, one task per training lineage (:func:`_lineage_of`), its longest
+    budget, each alone and the longest first (so the workers train different models at once
+    and the longest work starts first), told to save its model at the lineage's other
+    budgets; beside them every task that trains nothing. Then the lineages' other tasks,
+    which load those models. Batches hold at most 4 tasks (at least ~8 per worker for load
+    balance) so a killed run loses little."""
+    lineages: dict[tuple[Any, ...], list[Task]] = {}
+    plain: list[Task] = []
     for t in tasks:
-        model = _model_of(t)
-        if model is not None and model not in models:
-            models.add(model)
-            first.append(t)
+        lineage = _lineage_of(t)
+        if lineage is None:
+            plain.append(t)
         else:
-            rest.append(t)
-    extra = {MODELS_DIR: models_dir} if models_dir is not None else {}
-    size = max(1, min(4, math.ceil(len(rest) / max(1, workers * 8))))
-    dicts = [{**t.to_dict(), **extra} for t in rest]
-    return [[{**t.to_dict(), **extra}] for t in first] + [dicts[i : i + size] for i in range(0, len(dicts), size)]
+            lineages.setdefault(lineage, []).append(t)
+    extra: dict[str, Any] = {MODELS_DIR: models_dir} if models_dir is not None else {}
+    if pretrained:
+        extra[PRETRAINED] = list(pretrained)
+    trainers: list[dict[str, Any]] = []
+    followers: list[Task] = []
+    for members in lineages.values():
+        members = sorted(members, key=lambda t: -int(t.settings.get("timesteps", 0)))
+        budgets = sorted({int(t.settings.get("timesteps", 0)) for t in members[1:]} - {int(members[0].settings.get("timesteps", 0))})
+        trainers.append({**members[0].to_dict(), **extra, CHECKPOINTS: budgets})
+        followers += members[1:]
+    trainers.sort(key=lambda d: -int(d["settings"].get("timesteps", 0)))
+
+    def small(group: list[Task]) -> list[list[dict[str, Any]]]:
+        size = max(1, min(4, math.ceil(len(group) / max(1, workers * 8))))
+        dicts = [{**t.to_dict(), **extra} for t in group]
+        return [dicts[i : i + size] for i in range(0, len(dicts), size)]
+
+    stages = [[[d] for d in trainers] + small(plain), small(followers)]
+    return [stage for stage in stages if stage]
 
 
 @dataclass(frozen=True)
@@ -461,6 +506,7 @@ def execute(
     workers: int | None = None,
     scheduler: str | None = None,
     on_progress: Callable[[int, int], None] | None = None,
+    pretrained: tuple[str, ...] | list[str] = (),
 ) -> RunReport:
     """Run the experiment's tasks that the store lacks; commit each as it finishes.
 
@@ -468,7 +514,9 @@ def execute(
     scheduler address, or ``local:N`` for a local Dask cluster on loopback.
     ``on_progress(done, todo)`` is called after every committed task. A task that fails is
     recorded in the store (not as a result) and in the report; the others go on. Trained
-    models go to ``models/`` beside the store (:func:`models_dir_for`).
+    models go to ``models/`` beside the store (:func:`models_dir_for`); a model is reused
+    from there, or from the ``pretrained`` directories, when the directory's manifest
+    vouches for its file.
     """
     start = time.perf_counter()
     workers = check_run_options(workers, scheduler)
@@ -487,18 +535,18 @@ def execute(
     if not todo:
         return RunReport(total, total, 0, time.perf_counter() - start)
     todo_dicts = [t.to_dict() for t in todo]
-    batches = _batches(todo, workers if scheduler is None else 4, models_dir_for(store.path))
+    stages = _batches(todo, workers if scheduler is None else 4, models_dir_for(store.path), tuple(pretrained))
     modules = _modules_for(todo_dicts)
     limit = None
     if scheduler:
-        stream = _dask(batches, scheduler, modules)
+        stream = _dask(stages, scheduler, modules)
     else:
         # load the native libraries, limit their pools, then warm up: the forked workers
         # inherit all of it, and no OpenMP pool has started threads that a fork would break
         import_modules(modules)
         limit = limit_native_threads()
         warm_up(todo_dicts)
-        stream = _local(batches, workers, modules)
+        stream = _staged(stages, lambda batches: _local(batches, workers, modules))
     failures: list[Failure] = []
     done = 0
     try:

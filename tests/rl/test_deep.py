@@ -6,6 +6,7 @@ import pytest
 
 import swiptopt
 from rl import DeepConfig, deep_config_hash, load_deep, save_deep, train_deep, train_or_load_deep
+from rl.deep import file_sha256, model_path, read_manifest, read_weights
 from swiptopt.env import AuvSwiptEnv
 
 pytest.importorskip("stable_baselines3")
@@ -99,13 +100,108 @@ def test_training_across_layouts():
 
 def test_train_or_load_reuses_a_matching_model(tmp_path):
     first = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
-    assert not first.loaded and list(tmp_path.glob("*.zip")) == [tmp_path / f"dqn-{first.config_hash}.zip"]
+    name = f"dqn-{first.config_hash}.npz"
+    assert not first.loaded and sorted(p.name for p in tmp_path.glob("*.npz")) == [name]
+    manifest = read_manifest(tmp_path)
+    assert manifest[name]["sha256"] == file_sha256(tmp_path / name) == first.sha256
+    assert manifest[name]["config_hash"] == first.config_hash
     second = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
-    assert second.loaded and second.config_hash == first.config_hash
+    assert second.loaded and second.config_hash == first.config_hash and second.note == ""
     obs = _observations(50)
     np.testing.assert_array_equal(first.model.predict(obs, True)[0], second.model.predict(obs, True)[0])
+    for key, value in _parameters(first.model).items():
+        np.testing.assert_array_equal(value, _parameters(second.model)[key])
     other = train_or_load_deep(tmp_path, "dqn", TINY.replace(split_ratio=0.3), 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
-    assert not other.loaded and len(list(tmp_path.glob("*.zip"))) == 2
+    assert not other.loaded and len(list(tmp_path.glob("*.npz"))) == 2 and len(read_manifest(tmp_path)) == 2
+
+
+def test_a_file_the_manifest_does_not_vouch_for_is_never_loaded(tmp_path):
+    """A planted or altered file under a model's name is retrained over, and said so; the
+    weights format holds no pickle, so even a file with one runs nothing."""
+    kwargs = dict(hyperparams=SETTINGS["ppo"], policy_kwargs=NET)
+    config = DeepConfig("ppo", 128, 0, SETTINGS["ppo"], NET)
+    path = model_path(tmp_path, config, TINY)
+    marker = tmp_path / "payload-ran"
+    # an npz whose entry is a pickled object that would create the marker if unpickled
+    np.savez(path, header=np.array([_Payload(marker)], dtype=object))
+    result = train_or_load_deep(tmp_path, "ppo", TINY, 128, 0, **kwargs)
+    assert not result.loaded and "not recorded" in result.note and not marker.exists()
+    assert read_manifest(tmp_path)[path.name]["sha256"] == file_sha256(path)
+    # now recorded; alter the file behind the manifest's back
+    data = bytearray(path.read_bytes())
+    data[-20] ^= 0xFF
+    path.write_bytes(bytes(data))
+    again = train_or_load_deep(tmp_path, "ppo", TINY, 128, 0, **kwargs)
+    assert not again.loaded and "differs from the file recorded" in again.note
+    third = train_or_load_deep(tmp_path, "ppo", TINY, 128, 0, **kwargs)
+    assert third.loaded and third.note == ""
+    with pytest.raises(swiptopt.ConfigError, match="not a swiptopt weights file"):
+        read_weights(tmp_path / "junk.npz") if (tmp_path / "junk.npz").write_bytes(b"PK junk") else None
+
+
+class _Payload:
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_a_zip_checked_against_its_recorded_digest_runs_nothing_when_it_differs(tmp_path):
+    import pickle
+    import zipfile
+
+    result = _train("ppo", timesteps=128)
+    path = save_deep(result, tmp_path / "model.zip")
+    digest = file_sha256(path)
+    assert load_deep(path, "ppo", sha256=digest).predict(_observations(5), True)[0].shape == (5,)
+    marker = tmp_path / "payload-ran"
+    planted = tmp_path / "planted.zip"
+    with zipfile.ZipFile(planted, "w") as z:
+        z.writestr("data", pickle.dumps(_Payload(marker)))
+    with pytest.raises(swiptopt.ConfigError, match="SHA-256"):
+        load_deep(planted, "ppo", sha256=digest)
+    assert not marker.exists()
+
+
+def test_pretrained_directories_are_used_only_with_their_manifest(tmp_path):
+    kwargs = dict(hyperparams=SETTINGS["ppo"], policy_kwargs=NET)
+    shipped = tmp_path / "shipped"
+    made = train_or_load_deep(shipped, "ppo", TINY, 128, 0, **kwargs)
+    fresh = tmp_path / "models"
+    reused = train_or_load_deep(fresh, "ppo", TINY, 128, 0, pretrained=[shipped], **kwargs)
+    assert reused.loaded and reused.path == made.path and not list(fresh.glob("*.npz"))
+    (shipped / "manifest.json").unlink()
+    retrained = train_or_load_deep(tmp_path / "other", "ppo", TINY, 128, 0, pretrained=[shipped], **kwargs)
+    assert not retrained.loaded and "not recorded" in retrained.note
+    for key, value in _parameters(made.model).items():  # retraining gives the same model
+        np.testing.assert_array_equal(value, _parameters(retrained.model)[key])
+
+
+def test_a_checkpoint_is_the_model_of_the_shorter_run(tmp_path):
+    kwargs = dict(hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=2)
+    long = train_or_load_deep(tmp_path, "ppo", TINY, 512, 0, checkpoints=[256], **kwargs)
+    short = train_or_load_deep(tmp_path, "ppo", TINY, 256, 0, **kwargs)
+    assert short.loaded  # the checkpoint, recorded under the shorter run's name
+    alone = train_deep("ppo", TINY, 256, 0, **kwargs)
+    for key, value in _parameters(alone.model).items():
+        np.testing.assert_array_equal(value, _parameters(short.model)[key])
+    assert any(not np.array_equal(v, _parameters(long.model)[k]) for k, v in _parameters(short.model).items())
+    with pytest.raises(swiptopt.ConfigError, match="checkpoint at 200 steps"):
+        train_or_load_deep(tmp_path, "ppo", TINY, 512, 0, checkpoints=[200], **kwargs)  # not a rollout's end
+    with pytest.raises(swiptopt.ConfigError, match="checkpoint"):
+        train_or_load_deep(tmp_path, "dqn", TINY, 512, 0, checkpoints=[256], hyperparams=SETTINGS["dqn"],
+                           policy_kwargs=NET)  # DQN's exploration decays over a share of the total
+
+
+def test_copies_of_the_environment_train_reproducibly():
+    first = train_deep("ppo", TINY, 256, 1, hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=4)
+    again = train_deep("ppo", TINY, 256, 1, hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=4)
+    single = train_deep("ppo", TINY, 256, 1, hyperparams=SETTINGS["ppo"], policy_kwargs=NET)
+    assert first.config.n_envs == 4 and first.config_hash != single.config_hash
+    for key, value in _parameters(first.model).items():
+        np.testing.assert_array_equal(value, _parameters(again.model)[key])
+    assert len(first.episode_returns) == 256 // TINY.episode_steps * 0 + len(again.episode_returns) > 0
 
 
 def test_the_hash_names_every_part_of_the_configuration():
@@ -126,7 +222,7 @@ def test_the_hash_names_every_part_of_the_configuration():
 
 
 def test_bad_configurations_are_config_errors(tmp_path):
-    with pytest.raises(swiptopt.ConfigError, match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'ppo', 'sac'\]"):
+    with pytest.raises(swiptopt.ConfigError, match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'maskable_ppo', 'ppo', 'sac'\]"):
         train_deep("pp0", TINY, 100)
     with pytest.raises(swiptopt.ConfigError, match=r"unknown ppo setting 'nsteps' \(did you mean 'n_steps'\?\).*batch_size"):
         train_deep("ppo", TINY, 100, hyperparams={"nsteps": 64})

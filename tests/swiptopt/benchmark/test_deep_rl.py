@@ -18,8 +18,9 @@ from swiptopt.errors import ConfigError
 pytest.importorskip("stable_baselines3")
 
 # a few hundred steps on the tiny preset, small networks, short rollouts: seconds per model
-TINY_PPO = {"timesteps": 192, "n_steps": 64, "batch_size": 32, "net_arch": [16]}
-TINY_DQN = {"timesteps": 192, "learning_starts": 32, "buffer_size": 500, "net_arch": [16]}
+TINY_PPO = {"timesteps": 192, "n_steps": 64, "batch_size": 32, "net_arch": [16], "n_envs": 2, "n_epochs": 2}
+TINY_DQN = {"timesteps": 192, "learning_starts": 32, "buffer_size": 500, "net_arch": [16], "n_envs": 2,
+            "batch_size": 32, "gradient_steps": 1}
 
 
 #: The tiny preset with link failures: small, and no exact optimum per task (that search
@@ -45,7 +46,7 @@ def run(experiment, store_path, workers=1):
 
 
 def models(directory):
-    return sorted(p.name for p in (directory / "models").glob("*.zip"))
+    return sorted(p.name for p in (directory / "models").glob("*.npz"))
 
 
 # ------------------------------------------------------------------ reuse
@@ -91,21 +92,47 @@ def test_across_layouts_trains_once_per_seed_for_every_layout(tmp_path):
 def test_a_damaged_stored_model_is_retrained_and_gives_the_same_table(tmp_path):
     experiment = tiny(algorithms={"dqn": {**TINY_DQN, "training_seeds": 1}}, layouts=1)
     _, first, table = run(experiment, tmp_path / "a.sqlite")
-    (path,) = (tmp_path / "models").glob("*.zip")
+    (path,) = (tmp_path / "models").glob("*.npz")
     path.write_bytes(b"PK\x03\x04 not really a zip")
     _, second, again = run(experiment, tmp_path / "b.sqlite")
     (extra,) = [r["extra"] for r in second.values()]
-    assert not extra["model_loaded"] and "retrained" in extra["model_note"]
+    assert not extra["model_loaded"] and "retrained" in extra["model_note"] and "differs" in extra["model_note"]
     assert again == table
-    # a whole model of another configuration under this name is recognised too
-    other = next(iter((tmp_path / "models").glob("*.zip")))
+    # a whole model of another configuration copied under this name is not the file recorded
+    other = next(iter((tmp_path / "models").glob("*.npz")))
     experiment2 = tiny(algorithms={"dqn": {**TINY_DQN, "training_seeds": 1, "timesteps": 160}}, layouts=1)
     run(experiment2, tmp_path / "c.sqlite")
-    newer = [p for p in (tmp_path / "models").glob("*.zip") if p != other]
+    newer = [p for p in (tmp_path / "models").glob("*.npz") if p != other]
     other.write_bytes(newer[0].read_bytes())
     _, third, again = run(experiment, tmp_path / "d.sqlite")
     (extra,) = [r["extra"] for r in third.values()]
-    assert "another configuration" in extra["model_note"] and again == table
+    assert "differs from the file recorded" in extra["model_note"] and again == table
+
+
+def test_a_planted_model_runs_nothing_and_is_retrained(tmp_path):
+    """A file planted under a model's predictable name (an SB3 zip whose pickle would write a
+    file, or weights the manifest does not vouch for) is never loaded: the task retrains and
+    says so."""
+    import pickle
+    import zipfile
+
+    experiment = tiny(algorithms={"ppo": {**TINY_PPO, "training_seeds": 1}}, layouts=1)
+    _, first, table = run(experiment, tmp_path / "a.sqlite")
+    (path,) = (tmp_path / "models").glob("*.npz")
+    marker = tmp_path / "planted-payload-ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    (tmp_path / "models" / "manifest.json").unlink()
+    with zipfile.ZipFile(path, "w") as z:  # an SB3-style zip with a pickled payload
+        z.writestr("data", pickle.dumps(Payload()))
+    path.with_suffix(".zip").write_bytes(path.read_bytes())
+    _, second, again = run(experiment, tmp_path / "b.sqlite")
+    (extra,) = [r["extra"] for r in second.values()]
+    assert not extra["model_loaded"] and "not recorded" in extra["model_note"]
+    assert not marker.exists() and again == table
 
 
 def test_the_seed_spread_column_shows_each_seeds_mean(tmp_path):
