@@ -17,6 +17,11 @@ Everything a user needs is importable from here::
 - in the continuous world (``swiptopt/AuvSwiptContinuous-v0``): :class:`OmplTourPlanner`
   (hover points anywhere, a tour over OMPL energy paths, convex dwells) and
   :class:`StraightLinePlanner` (the same with straight legs that ignore obstacles and current);
+- the RL counterpart of a tour planner: :class:`StopChoiceEnv` and
+  :class:`ContinuousStopChoiceEnv` (:mod:`planners.stops`: the action is the next stop and its
+  dwell, masked for MaskablePPO, executed by the planners' executors; registered as
+  :data:`STOP_ENV_IDS`), :func:`make_stop_env`, and :class:`StopChoicePolicy`, which plays a
+  trained model on the kernel env;
 - the optimum as the reference: :func:`solve_optimum` (the episode as a mixed-integer
   program, HiGHS: best walk, proven bound, gap) and its policy :class:`MilpPlanner`; the
   per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`.
@@ -41,12 +46,20 @@ from planners.power_split import (
 from planners.rate_greedy import RateGreedyPlanner, rate_greedy_actions
 from planners.reward_tour import RewardKMeansTspPlanner
 from planners.service import StepModel, step_model
+from planners.stops import (
+    STOP_ENV_IDS,
+    ContinuousStopChoiceEnv,
+    StopChoiceEnv,
+    StopChoicePolicy,
+    make_stop_env,
+)
 from planners.tsp import TspResult, held_karp, solve_tsp, tour_length
 from planners.walk_search import polish_walk
 
 __all__ = [
     "BUDGETS",
     "ContinuousPlan",
+    "ContinuousStopChoiceEnv",
     "DwellSplitProblem",
     "ExactOptimum",
     "GreedyPlanner",
@@ -62,8 +75,11 @@ __all__ = [
     "PowerSplitResult",
     "RateGreedyPlanner",
     "RewardKMeansTspPlanner",
+    "STOP_ENV_IDS",
     "StepModel",
     "Stop",
+    "StopChoiceEnv",
+    "StopChoicePolicy",
     "StraightLinePlanner",
     "TspResult",
     "UpperBound",
@@ -74,6 +90,7 @@ __all__ = [
     "exact_state_bound",
     "held_karp",
     "kmeans_hover_points",
+    "make_stop_env",
     "optimal_split_ratio",
     "optimise_dwell_and_split",
     "path_actions",

@@ -59,7 +59,7 @@ from swiptopt.worlds import ENV_IDS, GRID, check_world, make_env
 #: The algorithms :func:`train_deep` trains by name, with their class. Any other SB3
 #: algorithm is named by its class as ``"package.module:Class"`` (``"stable_baselines3:A2C"``).
 DEEP_ALGORITHMS = {
-    "dqn": "stable_baselines3:DQN",
+    "dqn": "rl.deep:StepDQN",
     "ppo": "stable_baselines3:PPO",
     "sac": "stable_baselines3:SAC",
     "maskable_ppo": "sb3_contrib:MaskablePPO",
@@ -117,6 +117,54 @@ def _algorithm_class(algorithm: str) -> type:
     return obj
 
 
+def _step_dqn_class() -> type:
+    """:class:`StepDQN`, built on first use (SB3 loads then)."""
+    from stable_baselines3 import DQN
+
+    class StepDQN(DQN):
+        """SB3's DQN with its exploration decaying over a fixed number of steps.
+
+        ``exploration_steps``: epsilon falls linearly from ``exploration_initial_eps`` to
+        ``exploration_final_eps`` over that many environment steps, then stays there,
+        whatever the run's total (SB3's own ``exploration_fraction`` is a share of the
+        total, so a longer run explores longer and its model after n steps is not the model
+        of a run of n steps; this one's is: :func:`checkpoint_exact`). Everything else is
+        SB3's DQN.
+        """
+
+        def __init__(self, *args: Any, exploration_steps: int = 100_000, **kwargs: Any):
+            if isinstance(exploration_steps, bool) or not isinstance(exploration_steps, (int, np.integer)) \
+                    or exploration_steps < 1:
+                raise ValueError(f"exploration_steps = {exploration_steps!r} must be a positive integer")
+            self.exploration_steps = int(exploration_steps)
+            super().__init__(*args, **kwargs)
+
+        def _on_step(self) -> None:
+            super()._on_step()
+            done = min(1.0, self.num_timesteps / self.exploration_steps)
+            start, end = self.exploration_initial_eps, self.exploration_final_eps
+            self.exploration_rate = start + done * (end - start)
+            self.logger.record("rollout/exploration_rate", self.exploration_rate)
+
+    StepDQN.__module__ = __name__
+    StepDQN.__qualname__ = "StepDQN"
+    return StepDQN
+
+
+_LAZY: dict[str, Callable[[], type]] = {"StepDQN": _step_dqn_class}
+_BUILT: dict[str, type] = {}
+
+
+def __getattr__(name: str) -> Any:
+    """The classes built on first use (:class:`StepDQN`), so that ``import rl.deep`` loads
+    no SB3."""
+    if name in _LAZY:
+        if name not in _BUILT:
+            _BUILT[name] = _LAZY[name]()
+        return _BUILT[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def _file_stem(algorithm: str) -> str:
     """A file-name-safe form of an algorithm's name (a class path's class, in lower case)."""
     name = algorithm.rpartition(":")[2].rpartition(".")[2].lower() if ":" in algorithm else algorithm
@@ -129,6 +177,21 @@ def _check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
         bound = f"in [{low}, {high}]" if high is not None else f">= {low}"
         raise ConfigError(f"{name} = {value!r} must be an integer {bound}", name)
     return int(value)
+
+
+def _constructor_arguments(cls: type) -> set[str]:
+    """The named arguments of ``cls``'s constructor, a subclass's ``**kwargs`` followed up
+    its bases."""
+    names: set[str] = set()
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        params = inspect.signature(init).parameters.values()
+        names |= {p.name for p in params if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+        if not any(p.kind == p.VAR_KEYWORD for p in params):
+            break
+    return names
 
 
 def _plain(name: str, value: Any) -> Any:
@@ -190,8 +253,7 @@ class DeepConfig:
 
     def check_hyperparams(self) -> None:
         """Unknown SB3 arguments are errors naming the allowed ones (imports SB3)."""
-        cls = _algorithm_class(self.algorithm)
-        allowed = sorted(set(inspect.signature(cls.__init__).parameters) - {"self", *_RESERVED})
+        allowed = sorted(_constructor_arguments(_algorithm_class(self.algorithm)) - {"self", *_RESERVED})
         for key in self.hyperparams:
             if key in _RESERVED:
                 raise ConfigError(
@@ -466,12 +528,16 @@ def rollout_steps(config: DeepConfig) -> int:
 def checkpoint_exact(config: DeepConfig, steps: int) -> bool:
     """Whether the model a run of ``config`` holds after ``steps`` steps is, bit for bit,
     the model of the same run with ``timesteps = steps``: true when ``steps`` ends a rollout
-    and nothing in the algorithm depends on the total (PPO, MaskablePPO and SAC with
-    constant schedules; not DQN, whose exploration decays over a share of the total)."""
+    and nothing in the algorithm depends on the total (PPO, MaskablePPO, SAC and
+    :class:`StepDQN` with constant schedules; not SB3's own DQN, whose exploration decays
+    over a share of the total)."""
     if steps % rollout_steps(config) or steps > config.timesteps:
         return False
-    if _file_stem(config.algorithm) == "dqn":
-        return False
+    cls = _algorithm_class(config.algorithm)
+    from stable_baselines3 import DQN
+
+    if issubclass(cls, DQN) and cls is not _algorithm_class("dqn"):
+        return False  # SB3's own DQN: its exploration decays over a share of the total
     return not any(callable(v) for v in config.hyperparams.values())
 
 

@@ -314,9 +314,10 @@ def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) ->
 @_with_run_options
 def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
     """Run a built-in experiment (by NAME) or a TOML experiment file and print its table."""
-    from swiptopt.benchmark.experiment import load_experiment
+    from swiptopt.benchmark.experiment import load_experiments
 
-    _run_and_report([load_experiment(spec)], quick, store_path, workers, scheduler, fmt, output)
+    experiments = load_experiments(spec)
+    _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output, caption=len(experiments) > 1)
 
 
 @cli.command()

@@ -21,10 +21,20 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
+from gymnasium.envs.registration import register, registry
+
 from planners.stops.base import CANDIDATE_FEATURES, DWELLS, MASKED_ACTIONS, Dwell, StopChoicePolicy, StopEpisode
 from planners.stops.continuous import ContinuousStopChoiceEnv, ContinuousStops, ContinuousStopSettings
 from planners.stops.grid import CANDIDATES, GridStops, GridStopSettings, StopChoiceEnv, build_grid_stops
 from swiptopt.scenario import Scenario
+
+
+#: The registered ids of the stop-choice environments, by world (``import planners``
+#: registers them: ``gymnasium.make(STOP_ENV_IDS["grid"], scenario=..., layout_seeds=...)``).
+STOP_ENV_IDS = {"grid": "swiptopt/AuvSwiptStops-v0", "continuous": "swiptopt/AuvSwiptContinuousStops-v0"}
+for _world, _cls in (("grid", "StopChoiceEnv"), ("continuous", "ContinuousStopChoiceEnv")):
+    if STOP_ENV_IDS[_world] not in registry:
+        register(id=STOP_ENV_IDS[_world], entry_point=f"planners.stops:{_cls}")
 
 
 def make_stop_env(world: str, scenario: Scenario | str, *, layout_seeds: Sequence[int] | None = None,
@@ -50,6 +60,7 @@ __all__ = [
     "CANDIDATE_FEATURES",
     "DWELLS",
     "MASKED_ACTIONS",
+    "STOP_ENV_IDS",
     "ContinuousStopChoiceEnv",
     "ContinuousStopSettings",
     "ContinuousStops",

@@ -319,17 +319,19 @@ _PPO = {
                           doc="PPO's clipping range (default: SB3's, 0.2)"),
 }
 _DQN = {
+    "learning_rate": Setting(default=5e-4, lo=0, lo_open=True, hi=1, doc="optimiser step size"),
     "buffer_size": Setting(default=200_000, kind="int", lo=1, hi=10**8, quick=2000, doc="replay buffer, transitions"),
     "learning_starts": Setting(default=10_000, kind="int", lo=0, hi=10**9, quick=256,
                                doc="steps before learning starts"),
-    "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, quick=32, doc="minibatch size"),
+    "batch_size": Setting(default=128, kind="int", lo=1, hi=1_000_000, quick=32, doc="minibatch size"),
     "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000,
                           doc="updates every train_freq steps of every copy (n_envs x train_freq steps)"),
-    "gradient_steps": Setting(default=4, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
+    "gradient_steps": Setting(default=2, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
     "target_update_interval": Setting(default=2000, kind="int", lo=1, hi=10**9,
                                       doc="steps between target network updates"),
-    "exploration_fraction": Setting(default=0.2, lo=0, lo_open=True, hi=1,
-                                    doc="fraction of training over which epsilon decays"),
+    "exploration_steps": Setting(default=200_000, kind="int", lo=1, hi=10**9, quick=256,
+                                 doc="steps over which epsilon decays (whatever the total, so a shorter run's model is "
+                                     "a checkpoint of a longer one)"),
     "exploration_final_eps": Setting(default=0.02, lo=0, hi=1, doc="epsilon at the end of its decay"),
 }
 _SAC = {
@@ -339,14 +341,14 @@ _SAC = {
     "batch_size": Setting(default=256, kind="int", lo=1, hi=1_000_000, quick=32, doc="minibatch size (SB3's default)"),
     "train_freq": Setting(default=1, kind="int", lo=1, hi=1_000_000,
                           doc="updates every train_freq steps of every copy (n_envs x train_freq steps)"),
-    "gradient_steps": Setting(default=4, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
+    "gradient_steps": Setting(default=2, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
 }
 
 #: Bytes of a float32 value in SB3's buffers.
 _FLOAT_BYTES = 4
 
 
-def _check_deep_sizes(name: str, rollout: bool) -> Callable[[dict[str, Any], Any], None]:
+def _check_deep_sizes(name: str, rollout: bool, candidates: bool = False) -> Callable[[dict[str, Any], Any], None]:
     """The sizes of a deep-RL task for its scenario, checked before any task runs: the
     network (parameters) and the buffer SB3 allocates at construction (an on-policy
     algorithm's rollout buffer holds n_envs x n_steps observations whatever ``timesteps``;
@@ -356,6 +358,8 @@ def _check_deep_sizes(name: str, rollout: bool) -> Callable[[dict[str, Any], Any
         from swiptopt.kernel import VECTOR_NODE_FEATURES
 
         obs = 4 + VECTOR_NODE_FEATURES * scenario.n_nodes
+        if candidates:  # the stop-choice observation: features of up to two candidate stops per node
+            obs += 2 * 4 * scenario.n_nodes
         widths = [obs, *settings["net_arch"], 8]
         parameters = sum((a + 1) * b for a, b in zip(widths, widths[1:])) * (2 if rollout else 3)
         check_size("max_network_parameters", parameters,
@@ -382,8 +386,10 @@ def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
             if k not in _NOT_SB3 and v is not None}
 
 
-def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
-    """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path)."""
+def _deep(sb3: str, stops: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+    """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path); with
+    ``stops``, on the world's stop-choice environment (:mod:`planners.stops`), the trained
+    model then played on the kernel env by :class:`planners.stops.StopChoicePolicy`."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
         from rl.deep import DeepConfig, checkpoint_exact, train_deep, train_or_load_deep
@@ -397,30 +403,60 @@ def _deep(sb3: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
             layouts = tuple(context.training_layouts)
             scenario = scenario.replace(layout_seed=layouts[0])
             seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
+        env_id, env_kwargs = None, {}
+        if stops:
+            from planners.stops import STOP_ENV_IDS
+
+            env_id = STOP_ENV_IDS[context.world]
+            env_kwargs = {key: settings[key] for key in _STOP_ENV_SETTINGS[context.world]}
         arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
-                         layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"])
+                         layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"], env_id=env_id,
+                         env_kwargs=env_kwargs)
         if context.models_dir is None:
-            return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
-        config = DeepConfig(sb3, settings["timesteps"], seed, arguments["hyperparams"], arguments["policy_kwargs"],
-                            layouts, context.world, settings["n_envs"])
-        checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps)]
-        return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
-                                  checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
+            result = train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
+        else:
+            config = DeepConfig(sb3, settings["timesteps"], seed, arguments["hyperparams"], arguments["policy_kwargs"],
+                                layouts, context.world, settings["n_envs"], env_id, env_kwargs)
+            checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps)]
+            result = train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
+                                        checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
+        if not stops:
+            return result
+        from planners.stops import StopChoicePolicy, make_stop_env
+
+        return _StopPolicy(result, StopChoicePolicy.from_env(result.model, make_stop_env(
+            context.world, context.scenario, **env_kwargs)))
 
     return build
+
+
+class _StopPolicy:
+    """A trained stop-choice model as a benchmark policy: the adapter's actions, the training
+    run's record (:func:`_deep_record`)."""
+
+    def __init__(self, result: Any, adapter: Any):
+        self.result = result
+        self.adapter = adapter
+
+    def begin_episode(self, env: Any, obs: Any = None, info: Any = None) -> None:
+        self.adapter.begin_episode(env.unwrapped, obs, info)
+
+    def predict(self, obs: Any, deterministic: bool = True) -> Any:
+        return self.adapter.predict(obs, deterministic)
 
 
 def _deep_record(policy: Any, env: Any) -> dict[str, Any]:
     """A deep-RL task's model: its hash, its training seed, whether it was loaded, the
     training time (0 when loaded), the model file's name and SHA-256, and what happened to
     an unusable stored model."""
-    out = {"model": policy.config_hash, "training_seed": policy.config.seed, "model_loaded": policy.loaded,
-           "train_seconds": policy.train_seconds, "train_cpu_seconds": policy.cpu_seconds}
-    if getattr(policy, "path", None) is not None:
-        out["model_file"] = policy.path.name
-        out["model_sha256"] = policy.sha256
-    if getattr(policy, "note", ""):
-        out["model_note"] = policy.note
+    result = getattr(policy, "result", policy)
+    out = {"model": result.config_hash, "training_seed": result.config.seed, "model_loaded": result.loaded,
+           "train_seconds": result.train_seconds, "train_cpu_seconds": result.cpu_seconds}
+    if getattr(result, "path", None) is not None:
+        out["model_file"] = result.path.name
+        out["model_sha256"] = result.sha256
+    if getattr(result, "note", ""):
+        out["model_note"] = result.note
     return out
 
 
@@ -442,6 +478,31 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
     return Algorithm(name or label.lower(), label, "rl", settings, _deep(sb3), _deep_record, observation="vector",
                      modules=("torch",), trains_model=True, worlds=worlds,
                      check_scenario=_check_deep_sizes(name or label.lower(), rollout) if rollout or "buffer_size" in settings else None)
+
+
+#: The stop-choice environment's settings the benchmark exposes, by world.
+_STOP_ENV_SETTINGS = {GRID: ("candidates",), CONTINUOUS: ("legs",)}
+#: MaskablePPO on the stop-choice environment: a decision is a stop and its dwell (several
+#: kernel steps), so its budgets count decisions.
+_STOP_PPO = {
+    **_DEEP_COMMON,
+    "timesteps": Setting(default=200_000, kind="int", lo=1, hi=10**9, quick=256,
+                         doc="decisions of training (each a stop and its dwell: several kernel steps), all copies "
+                             "together"),
+    "n_envs": Setting(default=8, kind="int", lo=1, hi=1024, quick=2,
+                      doc="copies of the stop-choice environment stepped together (SB3's DummyVecEnv)"),
+    **_PPO,
+    "n_steps": Setting(default=256, kind="int", lo=2, hi=1_000_000, quick=32,
+                       doc="decisions per copy per rollout"),
+    "batch_size": Setting(default=256, kind="int", lo=2, hi=1_000_000, quick=32, doc="minibatch size"),
+    "candidates": Setting(default="own+shared", kind="str", choices=("own", "own+shared"),
+                          doc="grid: the candidate stops, one per node ('own', where one step earns most from it) or "
+                              "two ('own+shared': also the best group stop that still serves it)"),
+    "legs": Setting(default="ompl", kind="str", choices=("ompl", "straight"),
+                    doc="continuous world: legs between stops around obstacles ('ompl', planned once per layout) "
+                        "or straight ('straight', given up when blocked)"),
+}
+_NOT_SB3 += ("candidates", "legs")
 
 
 _LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
@@ -495,6 +556,9 @@ ALGORITHMS: dict[str, Algorithm] = {
         sb3_algorithm("ppo", "PPO", _PPO, name="ppo", worlds=WORLDS),
         sb3_algorithm("dqn", "DQN", _DQN, name="dqn"),
         sb3_algorithm("sac", "SAC", _SAC, name="sac", worlds=(CONTINUOUS,)),
+        Algorithm("stop_ppo", "stop-choosing PPO", "rl", _STOP_PPO, _deep("maskable_ppo", stops=True), _deep_record,
+                  modules=("torch",), trains_model=True, worlds=WORLDS,
+                  check_scenario=_check_deep_sizes("stop_ppo", True, candidates=True)),
         Algorithm(
             "kmeans_tsp",
             "k-means + TSP",

@@ -40,6 +40,12 @@ A sweep key is a Scenario field or a setting of some of the experiment's algorit
 learning curve); a swept setting applies to the algorithms that have it, and the others'
 tasks are the same at every point (computed once).
 
+``budgets = {ppo = [62500, 250000, 1000000], stop_ppo = [25000, 100000]}`` runs each named
+algorithm (one with a ``timesteps`` setting: deep RL) at every budget of its list, a row
+each (``PPO @ 250,000``): a learning curve, each algorithm on its own scale. A training run
+serves every budget of its lineage where the shorter run's model is a checkpoint of the
+longer one (:func:`rl.deep.checkpoint_exact`), so a curve costs about its longest budget.
+
 A top-level ``baseline = "random"`` (one of the experiment's algorithms) adds a second
 table: every other algorithm's mean over the baseline's on the same layouts, with a
 bootstrap confidence interval and the number of layouts won.
@@ -82,9 +88,11 @@ from typing import Any
 
 from swiptopt.benchmark.algorithms import (
     ACROSS_LAYOUTS,
+    PER_LAYOUT as PER_LAYOUT_TRAINING,
     EXPANSION_SETTINGS,
     TRAINING,
     TRAINING_SEEDS,
+    check_setting,
     check_settings_for,
     check_world_of,
     get_algorithm,
@@ -107,7 +115,11 @@ EVALUATION_OFFSET = 1_000_003
 SEEDS_PER_LAYOUT = 1000
 
 TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline",
-            "training_layouts", "plugins", "world"}
+            "training_layouts", "plugins", "world", "budgets"}
+#: The setting a learning curve's budgets set.
+BUDGET_SETTING = "timesteps"
+#: The most budgets one algorithm's curve may list.
+MAX_BUDGETS = 32
 #: The largest layout seed an experiment names: a task's seed, 1000 x layout + s, and its
 #: evaluation seeds then stay below 2**32 (what NumPy's and torch's legacy seeding take).
 MAX_LAYOUT = 1_000_000
@@ -143,6 +155,13 @@ class Task:
     """The factory of a plugin algorithm (``package.module:function``), from ``[plugins]``."""
     world: str = GRID
     """The world the task runs in (:mod:`swiptopt.worlds`)."""
+    budget: int | None = None
+    """The learning-curve budget this task is a point of (its ``timesteps``), if any."""
+
+    @property
+    def row(self) -> str:
+        """The table row the task belongs to: its algorithm, at its budget if it has one."""
+        return self.algorithm if self.budget is None else budget_row(self.algorithm, self.budget)
 
     @property
     def key(self) -> str:
@@ -186,6 +205,8 @@ class Experiment:
     """Algorithms from outside the project: name -> ``package.module:factory``."""
     world: str = GRID
     """The world every task runs in (:mod:`swiptopt.worlds`): ``"grid"`` or ``"continuous"``."""
+    budgets: dict[str, list[int]] = field(default_factory=dict)
+    """Learning curves: algorithm -> the ``timesteps`` it runs at, a row each."""
 
     def __post_init__(self) -> None:
         _check_name(self.name)
@@ -223,6 +244,7 @@ class Experiment:
         for name in algorithms:
             check_world_of(name, self.world)
         self._check_training_layouts(resolved)
+        self._check_budgets()
         if self.baseline and self.baseline not in algorithms:
             raise ConfigError(
                 f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(algorithms)})",
@@ -232,7 +254,7 @@ class Experiment:
         self._check_figure()
         n_points = math.prod(len(v) for v in self.sweep.values())
         n_layouts = len(self.layout_seeds())
-        runs = sum(self.seeds_of(settings) for settings in resolved.values())
+        runs = sum(self.seeds_of(settings) * len(self.budgets.get(name, [None])) for name, settings in resolved.items())
         n_tasks = n_points * n_layouts * runs
         check_size(
             "max_tasks", n_tasks,
@@ -292,6 +314,39 @@ class Experiment:
                                   "training_layouts")
             value = list(range(start, start + count))
         object.__setattr__(self, "training_layouts", _check_layout_list("training_layouts", value))
+
+    def _check_budgets(self) -> None:
+        budgets = check_keys("budgets", self.budgets, "budgets")
+        out = {}
+        for name, values in budgets.items():
+            if name not in self.algorithms:
+                raise ConfigError(f"budgets.{name}: {name!r} is not one of the experiment's algorithms "
+                                  f"({', '.join(self.algorithms)})", "budgets")
+            schema = get_algorithm(name, self.plugins.get(name, "")).settings
+            if BUDGET_SETTING not in schema:
+                raise ConfigError(f"budgets.{name}: {name} has no {BUDGET_SETTING!r} setting to run at budgets "
+                                  "(deep-RL algorithms have)", "budgets")
+            if not isinstance(values, list) or not 1 <= len(values) <= MAX_BUDGETS:
+                raise ConfigError(f"budgets.{name} = {values!r} must be a list of 1 to {MAX_BUDGETS} step counts",
+                                  "budgets")
+            checked = [check_setting(f"budgets.{name}[{i}]", v, schema[BUDGET_SETTING], "budgets")
+                       for i, v in enumerate(values)]
+            if len(set(checked)) < len(checked) or checked != sorted(checked):
+                raise ConfigError(f"budgets.{name} = {values!r} must list distinct step counts in increasing order",
+                                  "budgets")
+            if BUDGET_SETTING in self.algorithms[name] or BUDGET_SETTING in self.sweep:
+                raise ConfigError(f"budgets.{name} and {BUDGET_SETTING} set elsewhere: the budgets set it",
+                                  "budgets")
+            out[name] = checked
+        object.__setattr__(self, "budgets", out)
+
+    def rows(self) -> list[tuple[str, str, int | None]]:
+        """The table's rows in order: (row name, algorithm, budget); an algorithm with
+        budgets has a row per budget."""
+        out = []
+        for name in self.algorithms:
+            out += [(budget_row(name, b), name, b) for b in self.budgets[name]] if name in self.budgets else [(name, name, None)]
+        return out
 
     def layout_seeds(self) -> tuple[int, ...]:
         """The evaluation layouts' seeds."""
@@ -379,7 +434,7 @@ class Experiment:
                 f"known: {', '.join(sorted(TOP_KEYS))}",
                 unknown[0],
             )
-        for key in ("scenario", "sweep", "algorithms", "figure", "plugins"):
+        for key in ("scenario", "sweep", "algorithms", "figure", "plugins", "budgets"):
             if key in data and not isinstance(data[key], dict):
                 raise ConfigError(f"[{key}] must be a table", key)
         if not isinstance(data.get("baseline", ""), str):
@@ -399,6 +454,7 @@ class Experiment:
             training_layouts=data.get("training_layouts"),
             plugins=dict(data.get("plugins", {})),
             world=data.get("world", GRID),
+            budgets=dict(data.get("budgets", {})),
         )
 
     @classmethod
@@ -421,8 +477,19 @@ class Experiment:
             seeds=1,
             episodes=min(self.episodes, 2),
             sweep={k: self._quick_values(k, v[:2]) for k, v in self.sweep.items()},
-            algorithms={name: quick_settings(name, settings) for name, settings in self.algorithms.items()},
+            budgets={name: self._quick_budgets(name, v) for name, v in self.budgets.items()},
+            algorithms={name: self._without_budget(name, quick_settings(name, settings))
+                        for name, settings in self.algorithms.items()},
         )
+
+    def _without_budget(self, name: str, settings: dict[str, Any]) -> dict[str, Any]:
+        """``settings`` without the budget setting when the budgets set it."""
+        return {k: v for k, v in settings.items() if not (name in self.budgets and k == BUDGET_SETTING)}
+
+    def _quick_budgets(self, name: str, values: list[int]) -> list[int]:
+        """An algorithm's first two budgets under ``--quick``: its quick ``timesteps`` and twice it."""
+        quick = get_algorithm(name, self.plugins.get(name, "")).settings[BUDGET_SETTING].quick
+        return [min(v, quick * 2**i) if quick is not None else v for i, v in enumerate(values[:2])]
 
     def _quick_values(self, key: str, values: list[Any]) -> list[Any]:
         """A swept setting's first values under ``--quick``: numbers capped at the setting's
@@ -463,9 +530,12 @@ class Experiment:
                     task_settings = {k: v for k, v in settings.items() if k not in EXPANSION_SETTINGS}
                     across = settings.get(TRAINING) == ACROSS_LAYOUTS
                     training = tuple(self.training_layouts) if across and self.training_layouts else None
-                    for s in range(self.seeds_of(settings)):
-                        out.append(Task(self.name, scenario, name, task_settings, SEEDS_PER_LAYOUT * layout + s,
-                                        self.episodes, point, training, self.plugins.get(name, ""), self.world))
+                    for budget in self.budgets.get(name, [None]):
+                        at = task_settings if budget is None else {**task_settings, BUDGET_SETTING: budget}
+                        for s in range(self.seeds_of(settings)):
+                            out.append(Task(self.name, scenario, name, at, SEEDS_PER_LAYOUT * layout + s,
+                                            self.episodes, point, training, self.plugins.get(name, ""), self.world,
+                                            budget))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -515,8 +585,84 @@ GENERALISATION_TIMESTEPS = 50_000
 GENERALISATION_TRAINING = {"start": 1000, "count": 200}
 
 
+#: The learning curves (``swiptopt run learning-curve``): every deep-RL contender of both
+#: worlds at budgets that double, trained per layout (a model per layout and seed, as the
+#: planners plan per layout) and across layouts (a model per seed for every layout of the
+#: suite, as ``compare`` trains), beside the planners on the same layouts. Budgets are
+#: powers of two times a rollout (PPO: 16 copies x 256 steps; the stop-choosing agent: 8 x
+#: 256 decisions), so one run per lineage saves every budget's model on its way.
+CURVE_LAYOUTS = 6
+_GRID_CURVE = (65_536, 131_072, 262_144, 524_288, 1_048_576)
+_STOP_CURVE = (16_384, 32_768, 65_536, 131_072, 262_144)
+_SAC_CURVE = (32_768, 65_536, 131_072, 262_144)
+
+
+def _doubled(budgets: tuple[int, ...]) -> list[int]:
+    return [2 * b for b in budgets]
+
+
+def learning_curves() -> list[Experiment]:
+    """The four experiments of ``learning-curve``: (grid, harbour) x (per layout, across layouts)."""
+    grid_planners = {"kmeans_tsp": {}, "rate_greedy": {}, "milp": {"budget": "compare"}}
+    harbour_planners = {"ompl_tour": {}, "straight_line": {}}
+    per = {"training": PER_LAYOUT_TRAINING}
+    across = {"training": ACROSS_LAYOUTS}
+    common = dict(episodes=10)
+    return [
+        _builtin(
+            "learning-curve",
+            "the learning curve of PPO, DQN and the stop-choosing agent on the standard suite's scenario, "
+            f"trained per layout ({CURVE_LAYOUTS} layouts, 3 seeds), beside k-means + TSP, rate-greedy and the MILP",
+            scenario={"preset": "paper", "n_nodes": 25},
+            algorithms={"ppo": per, "dqn": per, "stop_ppo": per, **grid_planners},
+            budgets={"ppo": list(_GRID_CURVE), "dqn": list(_GRID_CURVE), "stop_ppo": list(_STOP_CURVE)},
+            layouts=CURVE_LAYOUTS, baseline="milp", **common,
+        ),
+        _builtin(
+            "learning-curve-across",
+            "the learning curve of PPO, DQN and the stop-choosing agent trained across the standard suite's "
+            f"{_COMPARE_LAYOUTS} layouts (3 seeds), as compare trains them",
+            scenario={"preset": "paper", "n_nodes": 25},
+            algorithms={"ppo": across, "dqn": across, "stop_ppo": across, **grid_planners},
+            budgets={"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE), "stop_ppo": _doubled(_STOP_CURVE)},
+            layouts=_COMPARE_LAYOUTS, training_layouts=tuple(range(_COMPARE_LAYOUTS)), baseline="milp", **common,
+        ),
+        _builtin(
+            "learning-curve-harbour",
+            "the learning curve of PPO, SAC and the stop-choosing agent in the harbour (continuous world), "
+            f"trained per layout ({CURVE_LAYOUTS} layouts, 3 seeds), beside the OMPL tour and the straight line",
+            world=CONTINUOUS,
+            scenario={"preset": "harbour"},
+            algorithms={"ppo": per, "sac": per, "stop_ppo": per, **harbour_planners},
+            budgets={"ppo": list(_GRID_CURVE), "sac": list(_SAC_CURVE), "stop_ppo": list(_STOP_CURVE)},
+            layouts=CURVE_LAYOUTS, baseline="ompl_tour", **common,
+        ),
+        _builtin(
+            "learning-curve-harbour-across",
+            "the learning curve of PPO, SAC and the stop-choosing agent trained across the harbour suite's "
+            f"{_HARBOUR_LAYOUTS} layouts (3 seeds), as compare trains them",
+            world=CONTINUOUS,
+            scenario={"preset": "harbour"},
+            algorithms={"ppo": across, "sac": across, "stop_ppo": across, **harbour_planners},
+            budgets={"ppo": _doubled(_GRID_CURVE), "sac": _doubled(_SAC_CURVE), "stop_ppo": _doubled(_STOP_CURVE)},
+            layouts=_HARBOUR_LAYOUTS, training_layouts=tuple(range(_HARBOUR_LAYOUTS)), baseline="ompl_tour",
+            **common,
+        ),
+    ]
+
+
+#: Built-in experiments that run together under one name.
+GROUPS = {"learning-curve": ("learning-curve", "learning-curve-across", "learning-curve-harbour",
+                             "learning-curve-harbour-across")}
+
+
 #: An experiment's name names its files: letters, digits, '-', '_' and '.', not only dots.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9._-]{1,100}")
+
+
+def budget_row(algorithm: str, budget: int) -> str:
+    """The table row of an algorithm at a learning-curve budget."""
+    return f"{algorithm}@{budget}"
 
 
 def _check_layout_list(key: str, values: Any) -> tuple[int, ...]:
@@ -622,6 +768,7 @@ def builtin_experiments() -> dict[str, Experiment]:
                 episodes=20,
                 baseline="random",
             ),
+            *learning_curves(),
             *paper_figures(),
         )
     }
@@ -708,6 +855,15 @@ def paper_figures(link: str | None = None) -> list[Experiment]:
         # on the uplink alpha has no effect (all received power charges): no split sweep
         figures = [dataclasses.replace(e, name=e.name + suffix) for e in figures if e.name != "fig-reward-vs-split"]
     return figures
+
+
+def load_experiments(spec: str) -> list[Experiment]:
+    """The experiments ``spec`` names: a group of built-ins (:data:`GROUPS`), one built-in
+    by name, or a TOML file."""
+    if spec in GROUPS:
+        builtins = builtin_experiments()
+        return [builtins[name] for name in GROUPS[spec]]
+    return [load_experiment(spec)]
 
 
 def load_experiment(spec: str) -> Experiment:

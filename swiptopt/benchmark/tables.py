@@ -109,7 +109,7 @@ def _stored(experiment: Experiment, store: ResultStore) -> tuple[dict[tuple[int,
     out: dict[tuple[int, str], dict[int, dict[str, Any]]] = {}
     for t in tasks:
         if t.key in results:
-            out.setdefault((points.index(t.point), t.algorithm), {})[t.seed] = results[t.key]
+            out.setdefault((points.index(t.point), t.row), {})[t.seed] = results[t.key]
     return out, len(tasks) - sum(len(v) for v in out.values())
 
 
@@ -174,7 +174,7 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
     for p, point in enumerate(experiment.points()):
         references = _references(stored, p)
         point_rows = []
-        for algorithm in experiment.algorithms:
+        for algorithm, _, _ in experiment.rows():
             by_seed = stored.get((p, algorithm), {})
             found = list(by_seed.values())
             if not found:
@@ -208,7 +208,7 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
         order = sorted(range(len(point_rows)), key=lambda i: -point_rows[i][1]["return"].mean)
         ranks = {i: r + 1 for r, i in enumerate(order)}
         for i, (algorithm, summaries, n, bound, notes) in enumerate(point_rows):
-            rows.append(Row(point, algorithm, names.get(algorithm, algorithm), summaries, ranks[i], n, bound, notes))
+            rows.append(Row(point, algorithm, row_label(algorithm, names), summaries, ranks[i], n, bound, notes))
     return rows, missing
 
 
@@ -281,7 +281,7 @@ def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[Pa
     rows = []
     for p, point in enumerate(experiment.points()):
         base = stored.get((p, experiment.baseline), {})
-        for algorithm in experiment.algorithms:
+        for algorithm, _, _ in experiment.rows():
             mine = stored.get((p, algorithm), {})
             if algorithm == experiment.baseline or not mine:
                 continue
@@ -291,8 +291,16 @@ def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[Pa
                 pairs = [(a[layout], b[layout]) for layout in sorted(set(a) & set(b))]
                 x, y = (np.array(v, float) for v in zip(*pairs)) if pairs else (np.zeros(0), np.zeros(0))
                 ratios[metric] = Ratio.of(x, y, rng)
-            rows.append(PairedRow(point, algorithm, names.get(algorithm, algorithm), ratios))
+            rows.append(PairedRow(point, algorithm, row_label(algorithm, names), ratios))
     return rows
+
+
+def row_label(row: str, names: dict[str, str]) -> str:
+    """A row's label: the algorithm's, with its budget (``PPO @ 250,000``) for a learning
+    curve's row (:func:`swiptopt.benchmark.experiment.budget_row`)."""
+    algorithm, _, budget = row.partition("@")
+    label = names.get(algorithm, algorithm)
+    return f"{label} @ {int(budget):,}" if budget.isdigit() else label
 
 
 def _ratio_cell(r: Ratio) -> str:

@@ -108,7 +108,7 @@ def test_train_or_load_reuses_a_matching_model(tmp_path):
     second = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
     assert second.loaded and second.config_hash == first.config_hash and second.note == ""
     obs = _observations(50)
-    np.testing.assert_array_equal(first.model.predict(obs, True)[0], second.model.predict(obs, True)[0])
+    np.testing.assert_array_equal(first.model.predict(obs, deterministic=True)[0], second.model.predict(obs, deterministic=True)[0])
     for key, value in _parameters(first.model).items():
         np.testing.assert_array_equal(value, _parameters(second.model)[key])
     other = train_or_load_deep(tmp_path, "dqn", TINY.replace(split_ratio=0.3), 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
@@ -189,9 +189,16 @@ def test_a_checkpoint_is_the_model_of_the_shorter_run(tmp_path):
     assert any(not np.array_equal(v, _parameters(long.model)[k]) for k, v in _parameters(short.model).items())
     with pytest.raises(swiptopt.ConfigError, match="checkpoint at 200 steps"):
         train_or_load_deep(tmp_path, "ppo", TINY, 512, 0, checkpoints=[200], **kwargs)  # not a rollout's end
-    with pytest.raises(swiptopt.ConfigError, match="checkpoint"):
-        train_or_load_deep(tmp_path, "dqn", TINY, 512, 0, checkpoints=[256], hyperparams=SETTINGS["dqn"],
-                           policy_kwargs=NET)  # DQN's exploration decays over a share of the total
+    with pytest.raises(swiptopt.ConfigError, match="checkpoint"):  # SB3's DQN explores over a share of the total
+        train_or_load_deep(tmp_path, "stable_baselines3:DQN", TINY, 512, 0, checkpoints=[256],
+                           hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
+    # the project's DQN explores over a number of steps: its checkpoint is the shorter run's model
+    dqn = dict(hyperparams={**SETTINGS["dqn"], "exploration_steps": 200}, policy_kwargs=NET, n_envs=2)
+    train_or_load_deep(tmp_path, "dqn", TINY, 512, 0, checkpoints=[256], **dqn)
+    short_dqn = train_or_load_deep(tmp_path, "dqn", TINY, 256, 0, **dqn)
+    assert short_dqn.loaded
+    for key, value in _parameters(train_deep("dqn", TINY, 256, 0, **dqn).model).items():
+        np.testing.assert_array_equal(value, _parameters(short_dqn.model)[key])
 
 
 def test_copies_of_the_environment_train_reproducibly():
