@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-# benchmarks/planners.py would shadow the planners package: keep this folder off the path
+# keep this folder off the path: the planners package must not be shadowed by a script here
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 import argparse

@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-# benchmarks/planners.py would shadow the planners package: keep this folder off the path
+# keep this folder off the path: the planners package must not be shadowed by a script here
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
 
 from swiptopt.benchmark.experiment import builtin_experiments  # noqa: E402

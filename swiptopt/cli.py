@@ -122,6 +122,9 @@ _run_options = [
     click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal",
                  help="How to print the table."),
     click.option("--output", type=click.Path(dir_okay=False), default=None, help="Also write the table to this file."),
+    click.option("--retrain", is_flag=True,
+                 help="Train every deep-RL model here instead of reusing the models shipped with swiptopt "
+                      "(models in the store's own models/ are still reused)."),
 ]
 
 
@@ -131,8 +134,15 @@ def _with_run_options(fn):  # type: ignore[no-untyped-def]
     return fn
 
 
+def _pretrained(retrain: bool) -> tuple[str, ...]:
+    """The directories of shipped models a run may reuse (none with ``--retrain``)."""
+    from swiptopt.benchmark.runner import PRETRAINED_DIR
+
+    return () if retrain or not PRETRAINED_DIR.is_dir() else (str(PRETRAINED_DIR),)
+
+
 def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
-                    caption=False) -> None:
+                    caption=False, retrain=False) -> None:
     """Run the experiments one after the other into one store, print each one's tables as
     it finishes (``caption``: each under its name and world, also in
     the text formats), and write them all to ``output``."""
@@ -160,7 +170,8 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
                 def update(done: int, todo: int) -> None:
                     progress.update(bar, completed=done, total=todo)
 
-                report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update)
+                report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update,
+                                 pretrained=_pretrained(retrain))
             failed = f", {report.failed} failed" if report.failed else ""
             console.print(
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
@@ -168,11 +179,27 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
             )
             texts.append(_print_table(experiment, store, fmt, caption=caption))
             failures += report.failures
+        texts += _print_curves(experiments, store, fmt)
     if output:
         _write_output(output, "\n".join(texts))
     _report_failures(console, failures)
     if failures:
         raise click.exceptions.Exit(EXIT_TASKS_FAILED)
+
+
+def _print_curves(experiments, store, fmt) -> list[str]:  # type: ignore[no-untyped-def]
+    """The learning curves of the experiments with budgets, as one table (Markdown in the
+    terminal and Markdown formats); returns its text for --output (none without budgets)."""
+    from swiptopt.benchmark import tables
+
+    rows = [row for experiment in experiments for row in tables.curve_rows(experiment, store)]
+    if not rows or fmt in ("csv", "latex"):
+        return []
+    text = "**learning curves: return at each budget, flat at the end, last budget / best planner**\n\n"
+    text += tables.curves_to_markdown(rows)
+    click.echo("")
+    click.echo(text, nl=False)
+    return [text]
 
 
 def _missing_note(experiment, store, missing: int) -> str:  # type: ignore[no-untyped-def]
@@ -283,7 +310,7 @@ class _DescribesSuite(click.Command):
 @click.option("--suite", type=click.Choice(list(SUITES)), default="all", show_default=True,
               help="standard: the paper's grid world; harbour: the continuous world around obstacles; all: both.")
 @_with_run_options
-def compare(suite, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+def compare(suite, quick, store_path, workers, scheduler, fmt, output, retrain) -> None:  # type: ignore[no-untyped-def]
     """Every algorithm on the standard suite (the paper's grid world) and on the harbour
     suite (the continuous world), a table each (the main job).
 
@@ -295,7 +322,7 @@ def compare(suite, quick, store_path, workers, scheduler, fmt, output) -> None: 
 
     builtins = builtin_experiments()
     _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output,
-                    caption=True)
+                    caption=True, retrain=retrain)
 
 
 def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -312,16 +339,17 @@ def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) ->
 @click.option("--list", "list_", is_flag=True, expose_value=False, is_eager=True, callback=_print_builtins,
               help="List the built-in experiments and exit.")
 @_with_run_options
-def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # type: ignore[no-untyped-def]
+def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain) -> None:  # type: ignore[no-untyped-def]
     """Run a built-in experiment (by NAME) or a TOML experiment file and print its table."""
     from swiptopt.benchmark.experiment import load_experiments
 
     experiments = load_experiments(spec)
-    _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output, caption=len(experiments) > 1)
+    _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output, caption=len(experiments) > 1,
+                    retrain=retrain)
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["paper"]))
+@click.argument("what", type=click.Choice(["paper", "learning-curve"]))
 @click.option("--quick", is_flag=True, help="Shrink every experiment to a smoke test.")
 @_store_option
 @click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores).")
@@ -332,11 +360,15 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output) -> None:  # ty
     help="Run every figure on this data link (default: the paper preset's, downlink_split); "
     "uplink experiments are named with an -uplink suffix.",
 )
-def reproduce(what, quick, store_path, workers, scheduler, outdir, link) -> None:  # type: ignore[no-untyped-def]
-    """Run every experiment of the paper's figures and write the figures and their data.
+@click.option("--retrain", is_flag=True, help="Train every deep-RL model here instead of reusing the shipped ones.")
+def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain) -> None:  # type: ignore[no-untyped-def]
+    """Run every experiment of the paper's figures (``paper``) or the learning curves
+    (``learning-curve``) and write the figures and their data.
 
-    Data figures run with the reward weight Gamma = 1 (throughput only), energy figures with
-    Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes (l. 817, 963)."""
+    The paper's data figures run with the reward weight Gamma = 1 (throughput only), its
+    energy figures with Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes
+    (Section V). ``learning-curve`` writes ``fig-learning-curve`` (return against budget,
+    the planners as bands) and prints the curves' table."""
     from rich.console import Console
 
     from swiptopt.benchmark import plots
@@ -348,6 +380,23 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link) -> None
     check_run_options(workers, scheduler)
     console = Console(stderr=True)
     failures = []
+    if what == "learning-curve":
+        from swiptopt.benchmark.experiment import load_experiments
+
+        experiments = [e.quick() if quick else e for e in load_experiments("learning-curve")]
+        with ResultStore(store_path or DEFAULT_STORE) as store:
+            for experiment in experiments:
+                report = execute(experiment, store, workers=workers, scheduler=scheduler,
+                                 pretrained=_pretrained(retrain))
+                failures += report.failures
+                console.print(f"{experiment.name}: {report.ran} run, {report.cached} stored")
+            figure = plots.learning_curve_figure(experiments, store, outdir)
+            console.print(", ".join(map(str, figure.paths)) or f"no figure: {figure.skipped}")
+            _print_curves(experiments, store, "markdown")
+        _report_failures(console, failures)
+        if failures:
+            raise click.exceptions.Exit(EXIT_TASKS_FAILED)
+        return
     with ResultStore(store_path or DEFAULT_STORE) as store:
         written = plots.coverage_figure(outdir, quick=quick)
         console.print(f"coverage probability -> {', '.join(map(str, written))}")
@@ -406,6 +455,56 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
     if not drawn:
         raise ConfigError(f"no figure to draw from {store_path}", "figure")
     click.echo("\n".join(map(str, drawn)))
+
+
+@cli.group()
+def models() -> None:
+    """Trained deep-RL models: gather the ones a run used into a directory of their own."""
+
+
+@models.command("export")
+@click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
+@click.option("--experiment", "names", multiple=True, help="Only the models of these experiments' tasks (repeatable).")
+@click.option("--to", "outdir", type=click.Path(file_okay=False), required=True,
+              help="The directory to copy them to (its manifest.json records each file's SHA-256).")
+def models_export(store_path, names, outdir) -> None:  # type: ignore[no-untyped-def]
+    """Copy the model files the tasks of a results store loaded or trained (each checked
+    against the manifest that vouched for it) into a directory with its own manifest.
+
+    This is how the models shipped with swiptopt are made: ``swiptopt compare --retrain
+    --store build/s.sqlite`` trains them, then ``swiptopt models export build/s.sqlite --to
+    swiptopt/benchmark/pretrained`` gathers them."""
+    import shutil
+
+    from rl.deep import file_sha256, read_manifest, record_in_manifest
+    from swiptopt.benchmark.runner import PRETRAINED_DIR, models_dir_for
+    from swiptopt.benchmark.store import ResultStore
+
+    check_output_dir(outdir, "--to")
+    target = Path(outdir)
+    copied: dict[str, str] = {}
+    with ResultStore(store_path, readonly=True) as store:
+        results = store.get(store.keys())
+        for result in results.values():
+            extra, task = result["extra"], result["task"]
+            name = extra.get("model_file")
+            if not name or (names and task.get("experiment") not in names) or name in copied:
+                continue
+            source_dir = PRETRAINED_DIR if extra.get("model_shipped") else Path(models_dir_for(store_path))
+            record = read_manifest(source_dir).get(name)
+            source = source_dir / name
+            if record is None or not source.is_file() or file_sha256(source) != record["sha256"]:
+                raise ConfigError(f"{source} is missing or not the file its manifest records: cannot export it",
+                                  "store")
+            copied[name] = record["sha256"]
+            if source.resolve() != (target / name).resolve():
+                target.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(source, target / name)
+            record_in_manifest(target, name, record)
+    if not copied:
+        raise ConfigError(f"no task in {store_path} used a model" + (f" in {', '.join(names)}" if names else ""),
+                          "store")
+    click.echo(f"{len(copied)} model files -> {target}")
 
 
 def main(argv: list[str] | None = None) -> int:

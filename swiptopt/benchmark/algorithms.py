@@ -455,6 +455,7 @@ def _deep_record(policy: Any, env: Any) -> dict[str, Any]:
     if getattr(result, "path", None) is not None:
         out["model_file"] = result.path.name
         out["model_sha256"] = result.sha256
+        out["model_shipped"] = result.path.parent.name == "pretrained" and result.path.parent.parent.name == "benchmark"
     if getattr(result, "note", ""):
         out["model_note"] = result.note
     return out

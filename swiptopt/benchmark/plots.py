@@ -185,3 +185,62 @@ def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
         paths = _save(fig, outdir, "fig-coverage")
     paths.append(_write_csv(outdir, "fig-coverage.csv", ["n_nodes", "x_m", "analytic", "simulated", "trials"], data_rows))
     return paths
+
+
+def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
+                          stem: str = "fig-learning-curve") -> FigureResult:
+    """Return against training budget (log x), one panel per experiment with ``budgets``:
+    a line with 95 % CI error bars per learning algorithm, each planner of the experiment as
+    a band (its mean ± 95 % CI over the same layouts). The data go beside it as CSV."""
+    import matplotlib
+
+    from swiptopt.benchmark import tables
+
+    curves = [e for e in experiments if e.budgets]
+    if not curves:
+        return FigureResult(stem, [], "none of the experiments has budgets")
+    outdir = Path(outdir)
+    data_rows: list[list[Any]] = []
+    with matplotlib.rc_context({"font.size": 7}):
+        cols = 2 if len(curves) > 1 else 1
+        nrows = -(-len(curves) // cols)
+        fig = _figure(2.3 * nrows)
+        fig.set_size_inches(2 * COLUMN_WIDTH_IN if cols == 2 else COLUMN_WIDTH_IN, 2.3 * nrows)
+        drawn = False
+        for i, experiment in enumerate(curves):
+            ax = fig.add_subplot(nrows, cols, i + 1)
+            rows, _ = tables.aggregate(experiment, store)
+            by_row = {r.algorithm: r for r in rows}
+            lo = min(min(b) for b in experiment.budgets.values())
+            hi = max(max(b) for b in experiment.budgets.values())
+            for r in rows:
+                if "@" in r.algorithm or r.algorithm in experiment.budgets:
+                    continue
+                s = r.summaries["return"]
+                band = np.nan_to_num(s.ci95)
+                line = ax.plot([lo, hi], [s.mean, s.mean], lw=0.8, ls=":", label=r.label)[0]
+                ax.fill_between([lo, hi], s.mean - band, s.mean + band, color=line.get_color(), alpha=0.15, lw=0)
+                data_rows.append([experiment.name, r.algorithm, "", s.mean, s.ci95, s.n])
+            for name, budgets in experiment.budgets.items():
+                found = [(b, by_row.get(f"{name}@{b}")) for b in budgets]
+                found = [(b, r) for b, r in found if r is not None]
+                if not found:
+                    continue
+                x = np.array([b for b, _ in found], dtype=float)
+                s = [r.summaries["return"] for _, r in found]
+                ax.errorbar(x, [v.mean for v in s], yerr=np.nan_to_num([v.ci95 for v in s]), marker="o", ms=2.5,
+                            capsize=2, lw=1, label=found[0][1].label.split(" @ ")[0])
+                data_rows += [[experiment.name, name, b, v.mean, v.ci95, v.n] for b, v in zip(x.astype(int), s)]
+                drawn = True
+            ax.set_xscale("log", base=2)
+            ax.set_xlabel("training budget (steps; stop-choosing PPO: decisions)")
+            ax.set_ylabel("return")
+            ax.set_title(f"{experiment.name} ({experiment.world})")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=5, ncol=2)
+        if not drawn:
+            return FigureResult(stem, [], "the store holds none of the curves' results")
+        paths = _save(fig, outdir, stem)
+    paths.append(_write_csv(outdir, f"{stem}.csv", ["experiment", "algorithm", "budget", "return_mean", "ci95", "n"],
+                            data_rows))
+    return FigureResult(stem, paths)

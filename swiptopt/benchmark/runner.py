@@ -38,6 +38,7 @@ import time
 import traceback
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from swiptopt.benchmark.experiment import EVALUATION_OFFSET, Experiment, Task
@@ -71,12 +72,13 @@ DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 MODELS_DIR = "models_dir"
 #: The directory, beside the store, that holds trained models.
 MODELS_SUBDIR = "models"
+#: The models shipped with swiptopt (the deep-RL models of ``compare``), each vouched for by
+#: the directory's manifest; ``--retrain`` leaves them out (its README says how they were made).
+PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
 
 
 def models_dir_for(store_path: Any) -> str:
     """Where a run on the store at ``store_path`` keeps trained models (absolute)."""
-    from pathlib import Path
-
     return str(Path(store_path).resolve().parent / MODELS_SUBDIR)
 
 

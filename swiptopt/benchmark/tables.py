@@ -47,7 +47,7 @@ import numpy as np
 
 from swiptopt.benchmark.algorithms import labels
 from swiptopt.evaluation import Summary
-from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment
+from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment, budget_row
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.benchmark.store import ResultStore
 
@@ -515,3 +515,74 @@ FORMATS = ("terminal", "markdown", "csv", "latex")
 def render(rows: list[Row], fmt: str) -> str:
     """The rows as Markdown, CSV or LaTeX text."""
     return {"markdown": to_markdown, "csv": to_csv, "latex": to_latex}[fmt](rows)
+
+
+# ------------------------------------------------------------------ learning curves
+
+
+@dataclass(frozen=True)
+class CurveRow:
+    """One algorithm's learning curve in one experiment (``budgets``): its mean return at
+    each budget, whether the curve is flat at its end, and its last budget against the best
+    planner of the experiment on the same layouts."""
+
+    experiment: str
+    algorithm: str
+    label: str
+    budgets: tuple[int, ...]
+    returns: tuple[Summary, ...]
+    flat: bool
+    """The last two budgets' means lie within each other's 95 % CI."""
+    near_plateau: int
+    """The smallest budget whose mean return is within 10 % of the last budget's."""
+    reference: str
+    """The best planner's label (the experiment's non-budgeted algorithm of highest mean return)."""
+    reference_return: Summary | None
+    ratio: Ratio | None
+    """The last budget's mean over the reference's, paired by layout (seeds averaged)."""
+
+
+def curve_rows(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[CurveRow]:
+    """The learning curves of an experiment with ``budgets`` (empty without)."""
+    if not experiment.budgets:
+        return []
+    stored, _ = _stored(experiment, store)
+    names = labels()
+    rng = np.random.default_rng(seed)
+    rows, _ = aggregate(experiment, store)
+    planners = [r for r in rows if "@" not in r.algorithm and r.algorithm not in experiment.budgets]
+    best = max(planners, key=lambda r: r.summaries["return"].mean, default=None)
+    out = []
+    for name, budgets in experiment.budgets.items():
+        summaries = []
+        for b in budgets:
+            found = stored.get((0, budget_row(name, b)), {})
+            summaries.append(Summary.of([_task_mean(r["records"], "return") for r in found.values()]))
+        if not summaries or summaries[-1].n == 0:
+            continue
+        last, before = summaries[-1], summaries[-2] if len(summaries) > 1 else None
+        flat = before is not None and before.n > 0 and abs(last.mean - before.mean) <= min(last.ci95, before.ci95)
+        target = 0.9 * last.mean if last.mean > 0 else last.mean
+        near = next((b for b, s in zip(budgets, summaries) if s.n and s.mean >= target), budgets[-1])
+        ratio = None
+        if best is not None:
+            mine = _layout_means(stored.get((0, budget_row(name, budgets[-1])), {}), "return")
+            base = _layout_means(stored.get((0, best.algorithm), {}), "return")
+            common = sorted(set(mine) & set(base))
+            ratio = Ratio.of(np.array([mine[k] for k in common]), np.array([base[k] for k in common]), rng)
+        out.append(CurveRow(experiment.name, name, names.get(name, name), tuple(budgets), tuple(summaries), flat,
+                            near, best.label if best else "", best.summaries["return"] if best else None, ratio))
+    return out
+
+
+def curves_to_markdown(rows: list[CurveRow]) -> str:
+    """The learning curves as a Markdown table: return at each budget, whether flat, the
+    budget within 10 % of the last, and the last budget against the best planner."""
+    heads = ["experiment", "algorithm", "return at each budget (steps: mean ± 95 % CI)", "flat at the end",
+             "within 10 % from", "last / best planner"]
+    cells = []
+    for r in rows:
+        curve = "; ".join(f"{b:,}: {_cell(s, 1.0, 2)}" for b, s in zip(r.budgets, r.returns))
+        ratio = _ratio_cell(r.ratio) + f" ({r.reference})" if r.ratio is not None else "n/a"
+        cells.append([r.experiment, r.label, curve, "yes" if r.flat else "no", f"{r.near_plateau:,}", ratio])
+    return _markdown(heads, cells)

@@ -1,8 +1,8 @@
 """The planners' benchmarks in one run: TSP methods side by side, cvxpy versus the closed
 form for the power split, and OMPL planners' path lengths at fixed time limits.
 
-    python benchmarks/planners.py            # all three (a few minutes)
-    python benchmarks/planners.py tsp        # or one of: tsp, power_split, paths3d
+    python benchmarks/planner_suite.py            # all three (a few minutes)
+    python benchmarks/planner_suite.py tsp        # or one of: tsp, power_split, paths3d
 
 Each part is also a script of its own (``bench_tsp.py``, ``bench_power_split.py``,
 ``bench_paths3d.py``) that prints its own medians and ratios.
