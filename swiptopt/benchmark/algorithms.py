@@ -499,7 +499,7 @@ _STOP_PPO = {
     "candidates": Setting(default="own+shared", kind="str", choices=("own", "own+shared"),
                           doc="grid: the candidate stops, one per node ('own', where one step earns most from it) or "
                               "two ('own+shared': also the best group stop that still serves it)"),
-    "legs": Setting(default="ompl", kind="str", choices=("ompl", "straight"),
+    "legs": Setting(default="ompl", kind="str", choices=("ompl", "straight"), quick="straight",
                     doc="continuous world: legs between stops around obstacles ('ompl', planned once per layout) "
                         "or straight ('straight', given up when blocked)"),
 }

@@ -1,0 +1,134 @@
+"""The learning curves: budgets in experiments, one training run serving every budget of a
+lineage, the curves' table and figure, and the built-in group in --quick."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from swiptopt.benchmark import plots, tables
+from swiptopt.benchmark.experiment import GROUPS, Experiment, learning_curves, load_experiments
+from swiptopt.benchmark.runner import _batches, execute
+from swiptopt.benchmark.store import ResultStore
+from swiptopt.errors import ConfigError
+
+pytest.importorskip("stable_baselines3")
+
+TINY_PPO = {"n_steps": 32, "batch_size": 32, "net_arch": [16], "n_envs": 2, "n_epochs": 1, "training_seeds": 2}
+
+
+def curve(**fields):
+    fields.setdefault("name", "curve")
+    fields.setdefault("scenario", {"preset": "tiny", "failure_prob_min": 0.05, "failure_prob_max": 0.1})
+    fields.setdefault("episodes", 2)
+    fields.setdefault("layouts", 2)
+    fields.setdefault("algorithms", {"ppo": TINY_PPO, "greedy": {}})
+    fields.setdefault("budgets", {"ppo": [64, 128, 256]})
+    return Experiment(**fields)
+
+
+def test_budgets_expand_into_a_row_per_budget_and_one_lineage_per_model():
+    e = curve()
+    tasks = e.tasks()
+    ppo = [t for t in tasks if t.algorithm == "ppo"]
+    assert len(ppo) == 2 * 2 * 3 and {t.settings["timesteps"] for t in ppo} == {64, 128, 256}
+    assert {t.row for t in ppo} == {"ppo@64", "ppo@128", "ppo@256"}
+    assert [r for r, _, _ in e.rows()] == ["ppo@64", "ppo@128", "ppo@256", "greedy"]
+    stages = _batches(tasks, workers=2, models_dir="/tmp/models")
+    trainers = [b[0] for b in stages[0] if "checkpoints" in b[0]]
+    # one training per (layout, seed), at the longest budget, told to save the shorter ones
+    assert len(trainers) == 4 and all(t["settings"]["timesteps"] == 256 for t in trainers)
+    assert all(t["checkpoints"] == [64, 128] for t in trainers)
+    assert sum(len(b) for b in stages[1]) == 8  # the shorter budgets wait for them
+
+
+@pytest.mark.parametrize("budgets, words", [
+    ({"ppo": [128, 64]}, "increasing order"),
+    ({"ppo": [64, 64]}, "distinct"),
+    ({"greedy": [64]}, "no 'timesteps' setting"),
+    ({"dqn": [64]}, "not one of the experiment's algorithms"),
+    ({"ppo": []}, "1 to 32"),
+    ({"ppo": [0]}, "budgets.ppo"),
+])
+def test_bad_budgets_are_one_line_errors(budgets, words):
+    with pytest.raises(ConfigError, match=words) as info:
+        curve(budgets=budgets)
+    assert "\n" not in str(info.value)
+
+
+def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
+    e = curve()
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        report = execute(e, store, workers=2)
+        assert report.failed == 0, report.failures
+        results = store.get({t.key for t in e.tasks()})
+        extras = [r["extra"] for r in results.values() if r["task"]["algorithm"] == "ppo"]
+        trained = [x for x in extras if not x["model_loaded"]]
+        # the four lineages trained once each, at 256 steps; the 64- and 128-step models are
+        # their checkpoints, loaded by the other tasks
+        assert len(trained) == 4 and len(extras) == 12
+        rows, missing = tables.aggregate(e, store)
+        assert missing == 0 and [r.label for r in rows][:3] == ["PPO @ 64", "PPO @ 128", "PPO @ 256"]
+        (row,) = tables.curve_rows(e, store)
+        assert row.budgets == (64, 128, 256) and len(row.returns) == 3 and row.reference == "greedy"
+        assert row.ratio is not None and row.ratio.n == 2
+        last, before = row.returns[-1], row.returns[-2]
+        assert row.flat == (abs(last.mean - before.mean) <= min(last.ci95, before.ci95))
+        assert row.near_plateau in row.budgets
+        text = tables.curves_to_markdown([row])
+        assert "PPO" in text and "64:" in text and "(greedy)" in text
+        figure = plots.learning_curve_figure([e], store, tmp_path / "fig")
+    assert figure.skipped == "" and {p.suffix for p in figure.paths} == {".png", ".pdf", ".csv"}
+    lines = (tmp_path / "fig" / "fig-learning-curve.csv").read_text().splitlines()
+    assert len(lines) == 1 + 3 + 1  # header, three budgets, the planner's band
+
+
+def test_a_checkpoint_evaluates_like_the_run_of_its_length(tmp_path):
+    """A budget's row is the same whether its model came from a longer run's checkpoint or
+    from a run of that length alone."""
+    both = curve(budgets={"ppo": [64, 128]}, layouts=1, algorithms={"ppo": {**TINY_PPO, "training_seeds": 1}})
+    alone = curve(budgets={"ppo": [64]}, layouts=1, algorithms={"ppo": {**TINY_PPO, "training_seeds": 1}})
+    with ResultStore(tmp_path / "a" / "s.sqlite") as store:
+        execute(both, store, workers=1)
+        a = store.get({t.key for t in both.tasks() if t.budget == 64})
+    with ResultStore(tmp_path / "b" / "s.sqlite") as store:
+        execute(alone, store, workers=1)
+        b = store.get({t.key for t in alone.tasks()})
+    assert set(a) == set(b)
+    assert [a[k]["records"] for k in sorted(a)] == [b[k]["records"] for k in sorted(b)]
+    assert all(r["extra"]["model_loaded"] for r in a.values())  # the checkpoint
+    assert not any(r["extra"]["model_loaded"] for r in b.values())  # trained alone
+
+
+def test_the_built_in_curves_cover_both_worlds_and_both_trainings():
+    (group,) = GROUPS.values()
+    experiments = load_experiments("learning-curve")
+    assert [e.name for e in experiments] == list(group) == [e.name for e in learning_curves()]
+    assert {e.world for e in experiments} == {"grid", "continuous"}
+    for e in experiments:
+        trainings = {e.algorithms[name]["training"] for name in e.budgets}
+        assert len(trainings) == 1
+        assert len(e.layout_seeds()) >= 6 and e.baseline in e.algorithms and e.baseline not in e.budgets
+        for name, budgets in e.budgets.items():
+            assert len(budgets) >= 4 and all(b2 == 2 * b1 for b1, b2 in zip(budgets, budgets[1:]))
+        tasks = e.tasks()
+        seeds = {t.seed % 1000 for t in tasks if t.algorithm in e.budgets}
+        assert seeds == {0, 1, 2}  # three training seeds
+    assert {("grid", "across_layouts"), ("grid", "per_layout"), ("continuous", "across_layouts"),
+            ("continuous", "per_layout")} == {(e.world, next(iter(e.algorithms[n]["training"] for n in e.budgets)))
+                                              for e in experiments}
+
+
+def test_the_grid_curves_run_in_quick(tmp_path):
+    from swiptopt.cli import main
+
+    out = tmp_path / "curves.md"
+    code = main(["run", "learning-curve", "--quick", "--store", str(tmp_path / "s.sqlite"), "--format", "markdown",
+                 "--output", str(out), "--workers", "2"])
+    assert code == 0
+    text = out.read_text()
+    assert "learning curves" in text and "stop-choosing PPO @" in text and "SAC @" in text
+    with ResultStore(tmp_path / "s.sqlite", readonly=True) as store:
+        recorded = {json.loads(json.dumps(r["config"]))["name"] for r in store.runs()}
+    assert recorded == set(GROUPS["learning-curve"])
