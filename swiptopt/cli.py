@@ -464,31 +464,39 @@ def models() -> None:
 
 @models.command("export")
 @click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
-@click.option("--experiment", "names", multiple=True, help="Only the models of these experiments' tasks (repeatable).")
+@click.option("--experiment", "names", multiple=True, metavar="NAME|FILE.toml",
+              help="Only the models of these experiments' tasks (repeatable; default: every task's).")
+@click.option("--quick", is_flag=True, help="The experiments' --quick tasks.")
 @click.option("--to", "outdir", type=click.Path(file_okay=False), required=True,
               help="The directory to copy them to (its manifest.json records each file's SHA-256).")
-def models_export(store_path, names, outdir) -> None:  # type: ignore[no-untyped-def]
+def models_export(store_path, names, quick, outdir) -> None:  # type: ignore[no-untyped-def]
     """Copy the model files the tasks of a results store loaded or trained (each checked
     against the manifest that vouched for it) into a directory with its own manifest.
 
     This is how the models shipped with swiptopt are made: ``swiptopt compare --retrain
-    --store build/s.sqlite`` trains them, then ``swiptopt models export build/s.sqlite --to
-    swiptopt/benchmark/pretrained`` gathers them."""
+    --store build/s.sqlite`` trains them, then ``swiptopt models export build/s.sqlite
+    --experiment compare --experiment harbour --to swiptopt/benchmark/pretrained`` gathers
+    them."""
     import shutil
 
     from rl.deep import file_sha256, read_manifest, record_in_manifest
+    from swiptopt.benchmark.experiment import load_experiments
     from swiptopt.benchmark.runner import PRETRAINED_DIR, models_dir_for
     from swiptopt.benchmark.store import ResultStore
 
     check_output_dir(outdir, "--to")
     target = Path(outdir)
+    wanted = None
+    if names:
+        experiments = [e for name in names for e in load_experiments(name)]
+        wanted = {t.key for e in experiments for t in (e.quick() if quick else e).tasks()}
     copied: dict[str, str] = {}
     with ResultStore(store_path, readonly=True) as store:
-        results = store.get(store.keys())
+        results = store.get(wanted if wanted is not None else store.keys())
         for result in results.values():
-            extra, task = result["extra"], result["task"]
+            extra = result["extra"]
             name = extra.get("model_file")
-            if not name or (names and task.get("experiment") not in names) or name in copied:
+            if not name or name in copied:
                 continue
             source_dir = PRETRAINED_DIR if extra.get("model_shipped") else Path(models_dir_for(store_path))
             record = read_manifest(source_dir).get(name)
