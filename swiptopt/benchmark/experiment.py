@@ -552,31 +552,36 @@ _DETERMINISTIC = {"channel": "none", "failure_prob_min": 0.0, "failure_prob_max"
 _NODE_SWEEP = {"n_nodes": [10, 20, 30, 40, 50]}
 #: The layouts of the standard suite.
 _COMPARE_LAYOUTS = 6
-#: Deep RL in the standard suite: one model per algorithm and training seed, trained across
-#: the suite's own layouts (as the tabular agents train on the layout they are evaluated
-#: on), at a budget that keeps `make compare` within minutes on two cores.
-COMPARE_DEEP_TIMESTEPS = 30_000
-_COMPARE_DEEP = {
-    "ppo": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
-    "dqn": {"timesteps": COMPARE_DEEP_TIMESTEPS, "training": "across_layouts"},
-}
+#: The learning curves' budgets (``swiptopt run learning-curve``): powers of two times a
+#: rollout (PPO: 16 copies x 256 steps; the stop-choosing agent: 8 x 256 decisions), so one
+#: training run per lineage saves every budget's model on its way (:func:`learning_curves`).
+_GRID_CURVE = (65_536, 131_072, 262_144, 524_288, 1_048_576)
+_STOP_CURVE = (16_384, 32_768, 65_536, 131_072, 262_144)
+_SAC_CURVE = (32_768, 65_536, 131_072, 262_144)
+
+
+def _doubled(budgets: tuple[int, ...]) -> list[int]:
+    return [2 * b for b in budgets]
+
+
+#: Deep RL in the suites: one model per algorithm and training seed, trained across the
+#: suite's own layouts (as the tabular agents train on the layouts they are evaluated on),
+#: at the last budget of its learning curve across layouts (``learning-curve-across``,
+#: ``learning-curve-harbour-across``): the same tasks, so the same models. Those models are
+#: shipped (swiptopt/benchmark/pretrained), so ``compare`` evaluates them instead of training
+#: them; ``--retrain`` trains them afresh (hours on two cores).
+COMPARE_DEEP_TIMESTEPS = {"ppo": _doubled(_GRID_CURVE)[-1], "dqn": _doubled(_GRID_CURVE)[-1],
+                          "stop_ppo": _doubled(_STOP_CURVE)[-1]}
+_COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"} for name, steps in COMPARE_DEEP_TIMESTEPS.items()}
 #: The harbour suite: the continuous world on the harbour preset (a pier, a moored hull, a
 #: wreck, a sloping seabed and a current), where straight lines are wrong.
 _HARBOUR_LAYOUTS = 8
-#: Deep RL in the harbour suite: one model per algorithm and training seed, trained across
-#: the suite's layouts, at budgets that keep `make compare` (both suites) within about ten
-#: minutes on two cores (benchmarks/continuous_rl_speed.py measures the rates). SAC's
-#: gradient updates, not its environment steps, are its cost (about 35 steps/s with one
-#: update per step, 150 with one per four, on the loaded 2-core machine), so it updates every
-#: HARBOUR_SAC_TRAIN_FREQ steps: four times the experience for the same updates.
-HARBOUR_SAC_TIMESTEPS = 20_000
-HARBOUR_SAC_TRAIN_FREQ = 4
-HARBOUR_PPO_TIMESTEPS = 30_000
+HARBOUR_DEEP_TIMESTEPS = {"ppo": _doubled(_GRID_CURVE)[-1], "sac": _doubled(_SAC_CURVE)[-1],
+                          "stop_ppo": _doubled(_STOP_CURVE)[-1]}
 _HARBOUR_ALGORITHMS = {
     "ompl_tour": {},
     "straight_line": {},
-    "sac": {"timesteps": HARBOUR_SAC_TIMESTEPS, "train_freq": HARBOUR_SAC_TRAIN_FREQ, "training": "across_layouts"},
-    "ppo": {"timesteps": HARBOUR_PPO_TIMESTEPS, "training": "across_layouts"},
+    **{name: {"timesteps": steps, "training": "across_layouts"} for name, steps in HARBOUR_DEEP_TIMESTEPS.items()},
     "random": {},
 }
 #: The generalisation experiment: deep RL trained on layouts 1000..1199, evaluated on the
@@ -592,13 +597,6 @@ GENERALISATION_TRAINING = {"start": 1000, "count": 200}
 #: powers of two times a rollout (PPO: 16 copies x 256 steps; the stop-choosing agent: 8 x
 #: 256 decisions), so one run per lineage saves every budget's model on its way.
 CURVE_LAYOUTS = 6
-_GRID_CURVE = (65_536, 131_072, 262_144, 524_288, 1_048_576)
-_STOP_CURVE = (16_384, 32_768, 65_536, 131_072, 262_144)
-_SAC_CURVE = (32_768, 65_536, 131_072, 262_144)
-
-
-def _doubled(budgets: tuple[int, ...]) -> list[int]:
-    return [2 * b for b in budgets]
 
 
 def learning_curves() -> list[Experiment]:
@@ -710,8 +708,8 @@ def builtin_experiments() -> dict[str, Experiment]:
             _builtin(
                 "compare",
                 "every algorithm on the standard suite: the paper preset, 25 nodes (the MILP at its "
-                f"'compare' budget; PPO and DQN trained across the 6 layouts, {COMPARE_DEEP_TIMESTEPS:,} steps, "
-                "3 seeds)",
+                "'compare' budget; PPO, DQN and the stop-choosing agent trained across the 6 layouts at the last "
+                "budget of their learning curves, 3 seeds)",
                 scenario={**paper, "n_nodes": 25},
                 algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "compare"}, **_COMPARE_DEEP},
                 layouts=_COMPARE_LAYOUTS,
@@ -722,8 +720,8 @@ def builtin_experiments() -> dict[str, Experiment]:
             _builtin(
                 "harbour",
                 "the continuous world on the harbour preset (pier, hull, wreck, sloping seabed, current): the "
-                f"OMPL tour against straight lines, SAC and PPO (trained across the {_HARBOUR_LAYOUTS} layouts, "
-                f"{HARBOUR_SAC_TIMESTEPS:,} and {HARBOUR_PPO_TIMESTEPS:,} steps, 3 seeds) and random actions",
+                f"OMPL tour against straight lines, PPO, SAC and the stop-choosing agent (trained across the "
+                f"{_HARBOUR_LAYOUTS} layouts at the last budget of their learning curves, 3 seeds) and random actions",
                 world=CONTINUOUS,
                 scenario={"preset": "harbour"},
                 algorithms=_HARBOUR_ALGORITHMS,
