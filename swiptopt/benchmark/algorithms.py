@@ -291,7 +291,7 @@ _DEEP_COMMON = {
                              "collects whole rollouts, so it trains up to the next multiple of n_envs x n_steps)"),
     "n_envs": Setting(default=16, kind="int", lo=1, hi=1024, quick=2,
                       doc="copies of the environment stepped together (copy i seeded with the task's seed + i)"),
-    "net_arch": Setting(default=[128, 128], kind=INTS, lo=1, hi=4096,
+    "net_arch": Setting(default=[128, 128], kind=INTS, lo=1, hi=4096, quick=[32],
                         doc="hidden layer widths of the policy (and value) network"),
     "learning_rate": Setting(default=None, lo=0, lo_open=True, hi=1, optional=True,
                              doc="optimiser step size (default: Stable-Baselines3's for the algorithm)"),

@@ -1,0 +1,55 @@
+"""The models shipped with swiptopt: the manifest vouches for every file, compare loads them,
+and retraining reproduces a shipped model's evaluation exactly."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from rl.deep import file_sha256, read_manifest, read_weights
+from swiptopt.benchmark.experiment import builtin_experiments
+from swiptopt.benchmark.runner import PRETRAINED_DIR, execute
+from swiptopt.benchmark.store import ResultStore
+
+pytest.importorskip("stable_baselines3")
+
+
+def test_every_shipped_file_is_the_one_its_manifest_records():
+    manifest = read_manifest(PRETRAINED_DIR)
+    files = sorted(p.name for p in PRETRAINED_DIR.glob("*.npz"))
+    assert files and sorted(manifest) == files
+    for name, record in manifest.items():
+        assert file_sha256(PRETRAINED_DIR / name) == record["sha256"]
+        header, params = read_weights(PRETRAINED_DIR / name)
+        assert header["config_hash"] == record["config_hash"] and name.endswith(f"{record['config_hash']}.npz")
+        assert params  # weights, nothing else
+
+
+def _deep_only(name: str):
+    """The suite's --quick experiment with its deep-RL algorithms only (their tasks, their keys)."""
+    suite = builtin_experiments()[name].quick()
+    deep = {k: v for k, v in suite.algorithms.items() if k in ("ppo", "dqn", "sac", "stop_ppo")}
+    return dataclasses.replace(suite, algorithms=deep, baseline="")
+
+
+@pytest.mark.parametrize("suite", ["compare"])
+def test_retraining_reproduces_the_shipped_models_evaluations(suite, tmp_path):
+    experiment = _deep_only(suite)
+    keys = {t.key for t in experiment.tasks()}
+    with ResultStore(tmp_path / "shipped" / "s.sqlite") as store:
+        assert execute(experiment, store, workers=2, pretrained=(str(PRETRAINED_DIR),)).failed == 0
+        shipped = store.get(keys)
+    with ResultStore(tmp_path / "retrained" / "s.sqlite") as store:
+        assert execute(experiment, store, workers=2).failed == 0
+        retrained = store.get(keys)
+    assert set(shipped) == set(retrained) == keys
+    assert all(r["extra"]["model_loaded"] and r["extra"]["model_shipped"] for r in shipped.values())
+    # retrained here: no shipped file used, and each model trained once (the other layouts'
+    # tasks of a model trained across layouts load it from this run's own models/)
+    assert not any(r["extra"]["model_shipped"] for r in retrained.values())
+    assert {r["extra"]["model"] for r in retrained.values() if not r["extra"]["model_loaded"]} == {
+        r["extra"]["model"] for r in retrained.values()}
+    for key in keys:
+        assert shipped[key]["records"] == retrained[key]["records"]
+        assert shipped[key]["extra"]["model"] == retrained[key]["extra"]["model"]
