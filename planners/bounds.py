@@ -7,6 +7,15 @@ deterministic channel it is tightened by the episode length times the best per-s
 service any cell offers. :func:`exact_optimum` solves small deterministic instances
 (``tiny``) exactly by dynamic programming over the MDP, stepping the simulator kernel
 itself, so results can report optimality gaps.
+
+Which bound holds for which policy (docs/optimum.md): a bound holds for a *class* of
+policies, :data:`OPEN_LOOP` plans (the actions fixed before the episode) or
+:data:`ADAPTIVE` policies (each action chosen from what has been seen; every RL agent and
+every planner that reacts to the state). :class:`PolicyBound` carries a bound's value, its
+name in the benchmark's tables and its class. The other bounds live beside their solvers:
+:func:`planners.optimal.policy_bounds` (the MILP's and its linear relaxation's),
+:func:`planners.hindsight.hindsight_bound` (perfect information) and, for small instances,
+the exact adaptive optimum :func:`planners.adaptive.adaptive_optimum`.
 """
 
 from __future__ import annotations
@@ -21,6 +30,44 @@ from swiptopt.errors import ConfigError
 from swiptopt.harvesting import harvest_from_input_array_w
 from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.scenario import Scenario
+
+
+#: Policy classes (docs/optimum.md): a plan whose actions are fixed before the episode, and
+#: a policy that may choose each action from what it has seen. A bound that holds for
+#: adaptive policies holds for open-loop plans too.
+OPEN_LOOP = "open-loop"
+ADAPTIVE = "adaptive"
+POLICY_CLASSES = (OPEN_LOOP, ADAPTIVE)
+
+#: The bounds' names, as the benchmark's ``bound`` column prints them.
+UPPER_NAME = "upper"
+""":func:`upper_bound`: every policy."""
+MILP_NAME = "milp"
+"""The MILP's dual bound with a deterministic channel: every policy."""
+MILP_EXPECTED_NAME = "milp (expected)"
+"""The MILP's dual bound on the expected-rate relaxation: open-loop plans that cannot end early."""
+LP_EXPECTED_NAME = "lp (expected)"
+"""The expected-rate relaxation's linear relaxation: every non-anticipative policy."""
+HINDSIGHT_NAME = "hindsight"
+"""The perfect-information bound's upper confidence limit: every non-anticipative policy."""
+
+
+@dataclass(frozen=True)
+class PolicyBound:
+    """A bound on the expected return, its name and the class of policies it holds for."""
+
+    value: float
+    name: str
+    holds_for: str
+    """:data:`ADAPTIVE` (every non-anticipative policy) or :data:`OPEN_LOOP` (open-loop plans only)."""
+
+    def __post_init__(self) -> None:
+        if self.holds_for not in POLICY_CLASSES:
+            raise ConfigError(f"holds_for = {self.holds_for!r} must be one of {POLICY_CLASSES}", "holds_for")
+
+    def holds(self, policy_class: str) -> bool:
+        """Whether the bound holds for a policy of ``policy_class``."""
+        return self.holds_for == ADAPTIVE or policy_class == OPEN_LOOP
 
 
 @dataclass(frozen=True)

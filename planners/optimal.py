@@ -34,20 +34,26 @@ connectivity cuts (every set of vertices holding a visited vertex but not the st
 entered; separated by max flow), each round's value a valid bound (``lp_bound``). HiGHS then
 branches single-threaded from a warm start, the rate-greedy walk
 (:func:`planners.rate_greedy.rate_greedy_actions`) polished by a seeded local search
-(:func:`planners.walk_search.polish_walk`), within a node budget; its dual bound is a proven
-upper bound on every policy's return. Every limit is deterministic (:class:`MilpBudget`), so
+(:func:`planners.walk_search.polish_walk`), within a node budget; with a deterministic channel its dual bound is a
+proven upper bound on every policy's return. Every limit is deterministic (:class:`MilpBudget`), so
 the same scenario and budget give the same numbers on any machine; the wall-clock limit is
 a safety net whose hitting the status reports.
 
 **Stochastic channel.** The per-step amounts are the expectations of the capped per-step
 transfer over the fading and link failures (the *expected-rate relaxation*), and the plan
 runs open loop. ``objective`` is then the plan's value in that relaxation and ``bound``
-bounds the relaxation's value over all walks. By Jensen's inequality the relaxation's value
-of a fixed walk is at least the walk's expected return in the simulator whenever the episode
-runs to its last step; so ``bound`` bounds the expected return of every open-loop walk that
-cannot end early (an episode that ends early because every node was served by lucky draws
-saves penalties the relaxation charges), and it does not bound policies that react to the
-draws.
+bounds the relaxation's value over all walks. What each bounds (proof in docs/optimum.md;
+:func:`policy_bounds` lists them with the class of policy each holds for):
+
+- ``lp_bound``, the linear relaxation after any round of cuts, bounds the expected return of
+  *every* non-anticipative policy, adaptive ones included and episodes that end early
+  because every node was served: a policy's expected step counts lie in the convex hull of
+  walks, which the relaxation contains, and its expected return is at most the relaxation's
+  objective there (Jensen's inequality for the caps; Markov's for the early end);
+- ``bound``, the branch-and-bound's dual bound, bounds only the relaxation's value over
+  whole walks. Open-loop walks that cannot end early (some node no cell covers) stay below
+  it, by Jensen's inequality; a policy that reacts to the draws, or an open-loop walk whose
+  episode may end early, can exceed it (the tests hold a two-cell case of each).
 
 **Currents.** With a current, moves cost different energies by direction and depth, and an
 arc's fewest moves and least penalty may come from different paths. The arcs then carry
@@ -66,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from planners.bounds import ADAPTIVE, LP_EXPECTED_NAME, MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP, PolicyBound
 from planners.service import StepModel, step_model
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
@@ -147,9 +154,11 @@ class OptimumResult:
     """The plan's return: the simulator's with a deterministic channel, else its value in
     the expected-rate relaxation (see the module docstring)."""
     bound: float | None
-    """Proven upper bound on the best return (the relaxation's, with a stochastic channel)."""
+    """Proven upper bound on the best walk's return (the relaxation's, with a stochastic
+    channel: then it does not bound every policy, :func:`policy_bounds`)."""
     lp_bound: float | None
-    """The linear relaxation's value (a weaker bound), and its solve time below."""
+    """The linear relaxation's value (a weaker bound, but one that holds for adaptive
+    policies too: :func:`policy_bounds`), and its solve time below."""
     lp_time_s: float | None
     actions: list[int] = field(default_factory=list)
     """The plan: one action per step."""
@@ -169,6 +178,30 @@ class OptimumResult:
         return (self.bound - self.objective) / max(abs(self.bound), 1e-12)
 
 
+def policy_bounds(result: OptimumResult) -> list[PolicyBound]:
+    """The bounds of ``result`` with the class of policy each holds for (docs/optimum.md):
+
+    - deterministic channel: ``bound`` as ``milp``, for every policy (each policy's episode
+      is a walk, and the model is exact or a relaxation of every walk);
+    - stochastic channel: ``lp_bound`` as ``lp (expected)``, for every non-anticipative
+      policy; and ``bound`` as ``milp (expected)`` for open-loop plans, only when no walk can
+      end early (some node no cell covers) and only when it is below ``lp_bound``.
+
+    Empty when the solve found no bound (an unsupported scenario, a solver error).
+    """
+    out: list[PolicyBound] = []
+    finite = [v is not None and math.isfinite(v) for v in (result.bound, result.lp_bound)]
+    if result.details.get("deterministic"):
+        if finite[0]:
+            out.append(PolicyBound(float(result.bound), MILP_NAME, ADAPTIVE))  # type: ignore[arg-type]
+        return out
+    if finite[1]:
+        out.append(PolicyBound(float(result.lp_bound), LP_EXPECTED_NAME, ADAPTIVE))  # type: ignore[arg-type]
+    if finite[0] and result.details.get("can_end_early") is False and not (finite[1] and result.bound >= result.lp_bound):
+        out.append(PolicyBound(float(result.bound), MILP_EXPECTED_NAME, OPEN_LOOP))  # type: ignore[arg-type]
+    return out
+
+
 def solve_optimum(
     scenario: Scenario, *, budget: MilpBudget | str = "default", tables: K.Tables | None = None
 ) -> OptimumResult:
@@ -181,7 +214,7 @@ def solve_optimum(
     budget = resolve_budget(budget)
     started = time.perf_counter()
     tables = K.build_tables(scenario) if tables is None else tables
-    reason = _unsupported(scenario, tables)
+    reason = unsupported_reason(scenario, tables)
     if reason:
         return OptimumResult("unsupported", reason, None, None, None, None, wall_s=time.perf_counter() - started)
     model = step_model(tables)
@@ -200,8 +233,9 @@ def solve_optimum(
         )
 
 
-def _unsupported(scenario: Scenario, tables: K.Tables) -> str:
-    """Why the model cannot express the scenario ('' when it can)."""
+def unsupported_reason(scenario: Scenario, tables: K.Tables) -> str:
+    """Why the model cannot express the scenario ('' when it can); the time-indexed
+    programs of :mod:`planners.hindsight` share these limits."""
     p = tables.params
     if scenario.link == "uplink":
         return (
@@ -616,6 +650,8 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
         "cuts": len(cuts),
         "rate_greedy_return": model.walk_return(greedy_actions)[0],
         "warm_start_return": model.walk_return(warm_actions)[0],
+        "deterministic": bool(model.exact),
+        "can_end_early": bool(model.can_finish_early()),
     }
     if info.primal_solution_status != highspy.kSolutionStatusFeasible:
         message = f"no walk found within the budget (HiGHS: {details['highs_status']})"
