@@ -47,6 +47,7 @@ import re
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
+from planners.bounds import MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP
 from planners.optimal import BUDGETS
 from planners.paths3d import CRASHING_PLANNERS, NO_PYTHON_OBJECTIVE_PLANNERS, PLANNERS
 from swiptopt.errors import ConfigError, did_you_mean
@@ -209,24 +210,30 @@ def _milp(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) 
     return MilpPlanner(budget=dataclasses.replace(BUDGETS[settings["budget"]], **overrides))
 
 
-#: What the MILP's bound bounds (the tables' "bound" column): every policy's return with a
-#: deterministic channel; with a stochastic one, the expected-rate relaxation of open-loop
-#: walks only (see :mod:`planners.optimal`).
-MILP_BOUND = "milp"
-MILP_EXPECTED_BOUND = "milp (expected)"
+#: The MILP's dual bound as the tables name it (``bound_label``): with a deterministic
+#: channel it bounds every policy; with a stochastic one it bounds the expected-rate
+#: relaxation, which holds for open-loop plans that cannot end early only
+#: (:func:`planners.optimal.policy_bounds`, docs/optimum.md).
+MILP_BOUND = MILP_NAME
+MILP_EXPECTED_BOUND = MILP_EXPECTED_NAME
 
 
 def _milp_record(policy: Any, env: Any) -> dict[str, Any]:
     """The MILP's outcome under the keys a solver's task records (the tables read them):
     ``solver_status`` and ``solver_message``, ``best_return`` (the plan's value in the
-    solver's model), ``bound_return`` with ``bound_label`` (what it bounds), ``solver_gap``,
-    ``lp_bound_return``, ``solver_nodes``, ``solver_exact``, ``solver_time_limit_hit``."""
+    solver's model), ``bound_return`` with ``bound_label`` (its dual bound and its name),
+    ``solver_gap``, ``lp_bound_return``, ``solver_nodes``, ``solver_exact``,
+    ``solver_time_limit_hit``; ``policy_bounds``, each bound with the class of policy it
+    holds for (``{"value", "name", "holds_for"}``), and ``policy_class``: the plan is open loop."""
+    from planners.optimal import policy_bounds
     from planners.service import step_model
 
     result = getattr(policy, "result_", None)
     if result is None:
         return {}
     out = {
+        "policy_class": OPEN_LOOP,
+        "policy_bounds": [{"value": b.value, "name": b.name, "holds_for": b.holds_for} for b in policy_bounds(result)],
         "solver_status": result.status,
         "solver_message": result.message,
         "best_return": result.objective,

@@ -6,16 +6,24 @@ paper's Monte Carlo over layouts. A metric with no value in an episode (a target
 reached) is left out of that average and counted as missing, never as a number.
 
 The gap to bound, ``(bound - return) / |bound|`` per task, is taken against the tightest
-bound the experiment has for that task's scenario (the same sweep point and layout): a
-solver's proven bound where one of the experiment's tasks recorded it (the MILP's
-``bound_return``), else :func:`planners.upper_bound`; the ``bound`` column says which, in
-words that say what it bounds:
+bound that *holds for the task's class of policy* among those the experiment has for its
+scenario (the same sweep point and layout; docs/optimum.md has the proofs). A task is an
+open-loop plan when its record says so (``policy_class``: the MILP's plan) and an adaptive
+policy otherwise (every RL agent, and the planners that skip served stops or linger). The
+bounds are the ones a solver's task recorded with the class each holds for
+(``policy_bounds``: :func:`planners.optimal.policy_bounds`) and :func:`planners.upper_bound`;
+the ``bound`` column names the one used:
 
 - ``milp``: the MILP's bound with a deterministic channel, a bound on every policy;
-- ``milp (expected)``: its bound with a stochastic channel, which bounds the expected-rate
-  relaxation of open-loop walks only (:mod:`planners.optimal`): a policy that reacts to the
-  draws may exceed it, and then shows a negative gap;
+- ``lp (expected)``: the linear relaxation of the expected-rate model with a stochastic
+  channel, a bound on every non-anticipative policy, adaptive ones included;
+- ``milp (expected)``: the MILP's bound on that model, a bound on open-loop plans only, and
+  only where no walk can end early: the open-loop rows may use it, the adaptive ones never;
 - ``upper``: every coverable node fully served with no travel, a bound on every policy.
+
+Results stored before the records carried ``policy_bounds`` are read conservatively: a
+``milp`` bound holds for every policy, a ``milp (expected)`` one for none (whether its
+episodes could end early was not recorded), and its ``lp_bound_return`` is ``lp (expected)``.
 
 The MILP's own row adds [best, bound]: the mean of its plans' values in its model and of
 its bounds.
@@ -45,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from planners.bounds import ADAPTIVE, LP_EXPECTED_NAME, MILP_NAME, UPPER_NAME, PolicyBound
 from swiptopt.benchmark.algorithms import labels
 from swiptopt.evaluation import Summary
 from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment, budget_row
@@ -60,7 +69,10 @@ SEED_SPREAD = "return_by_seed"
 SOLVER_BEST = "best_return"
 SOLVER_BOUND = "bound_return"
 #: The bound column's word for planners.upper_bound.
-UPPER = "upper"
+UPPER = UPPER_NAME
+#: A task's record of its bounds with their classes, and of its own class (docs/optimum.md).
+POLICY_BOUNDS = "policy_bounds"
+POLICY_CLASS = "policy_class"
 #: Solver statuses that come with a plan and a bound.
 SOLVED = ("optimal", "feasible")
 
@@ -113,20 +125,40 @@ def _stored(experiment: Experiment, store: ResultStore) -> tuple[dict[tuple[int,
     return out, len(tasks) - sum(len(v) for v in out.values())
 
 
-def _references(stored: dict[tuple[int, str], dict[int, dict[str, Any]]], p: int) -> dict[int, tuple[float, str]]:
-    """The tightest solver bound recorded at sweep point ``p``, per layout: (value, label)."""
-    out: dict[int, tuple[float, str]] = {}
+def _recorded_bounds(extra: dict[str, Any]) -> list[PolicyBound]:
+    """The bounds a task recorded, each with the class it holds for (module docstring for
+    records from before ``policy_bounds``)."""
+    if POLICY_BOUNDS in extra:
+        found = [PolicyBound(float(b["value"]), str(b["name"]), str(b["holds_for"])) for b in extra[POLICY_BOUNDS]]
+    else:
+        label = extra.get("bound_label")
+        found = []
+        if label == MILP_NAME and extra.get(SOLVER_BOUND) is not None:
+            found.append(PolicyBound(float(extra[SOLVER_BOUND]), MILP_NAME, ADAPTIVE))
+        elif label and extra.get("lp_bound_return") is not None:
+            found.append(PolicyBound(float(extra["lp_bound_return"]), LP_EXPECTED_NAME, ADAPTIVE))
+    return [b for b in found if math.isfinite(b.value)]
+
+
+def _references(stored: dict[tuple[int, str], dict[int, dict[str, Any]]], p: int) -> dict[int, list[PolicyBound]]:
+    """Every bound recorded at sweep point ``p``, per layout, with the class it holds for."""
+    out: dict[int, list[PolicyBound]] = {}
     for (q, _), found in stored.items():
         if q != p:
             continue
         for seed, r in found.items():
-            value, label = r["extra"].get(SOLVER_BOUND), r["extra"].get("bound_label")
-            if value is None or not label or not math.isfinite(value):
-                continue
-            layout = seed // SEEDS_PER_LAYOUT
-            if layout not in out or value < out[layout][0]:
-                out[layout] = (float(value), str(label))
+            out.setdefault(seed // SEEDS_PER_LAYOUT, []).extend(_recorded_bounds(r["extra"]))
     return out
+
+
+def _tightest(references: list[PolicyBound], extra: dict[str, Any]) -> PolicyBound | None:
+    """The tightest bound for a task: the recorded ones that hold for its class, and its
+    :func:`planners.upper_bound`."""
+    policy_class = extra.get(POLICY_CLASS, ADAPTIVE)
+    candidates = [b for b in references if b.holds(policy_class)]
+    if extra.get("upper_bound_return") is not None:
+        candidates.append(PolicyBound(float(extra["upper_bound_return"]), UPPER, ADAPTIVE))
+    return min(candidates, key=lambda b: b.value, default=None)
 
 
 def _bound_words(labels_used: list[str]) -> str:
@@ -183,14 +215,10 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
             gaps, optimum_gaps, used = [], [], []
             for seed, r in by_seed.items():
                 ret = _task_mean(r["records"], "return")
-                layout = seed // SEEDS_PER_LAYOUT
-                candidates = [references[layout]] if layout in references else []
-                if r["extra"].get("upper_bound_return") is not None:
-                    candidates.append((float(r["extra"]["upper_bound_return"]), UPPER))
-                bound, label = min(candidates, key=lambda c: c[0]) if candidates else (None, "")
-                if ret is not None and bound:
-                    gaps.append((bound - ret) / abs(bound))
-                    used.append(label)
+                tightest = _tightest(references.get(seed // SEEDS_PER_LAYOUT, []), r["extra"])
+                if ret is not None and tightest is not None and tightest.value:
+                    gaps.append((tightest.value - ret) / abs(tightest.value))
+                    used.append(tightest.name)
                 opt = r["extra"].get("optimum_return")
                 if ret is not None and opt:
                     optimum_gaps.append((opt - ret) / abs(opt))

@@ -100,22 +100,38 @@ def test_gap_column_against_hand_computed_numbers(tmp_path):
 
 
 def test_the_tightest_bound_wins_and_says_what_it_bounds(tmp_path):
-    exp = Experiment(name="labels", scenario={"preset": "tiny", "name": "small"}, layouts=2, episodes=1,
+    """Each row's gap is to the tightest bound that holds for its class (docs/optimum.md):
+    the MILP's plan is open loop, greedy adaptive, and a ``milp (expected)`` bound holds for
+    open-loop plans only; a record from before ``policy_bounds`` is read conservatively."""
+    exp = Experiment(name="labels", scenario={"preset": "tiny", "name": "small"}, layouts=3, episodes=1,
                      algorithms={"greedy": {}, "milp": {}})
     tasks = {(t.algorithm, t.seed // SEEDS_PER_LAYOUT): t for t in exp.tasks()}
     with ResultStore(tmp_path / "labels.sqlite") as store:
-        # a relaxation bound above the closed-form bound is not the tightest: upper wins
-        for layout, relaxed in ((0, 30.0), (1, 12.0)):
+        # layouts 0 and 1: the LP holds for every policy, the MILP's bound for open-loop plans;
+        # above the closed-form bound (layout 0) neither is the tightest: upper wins
+        for layout, lp, relaxed in ((0, 35.0, 30.0), (1, 14.0, 12.0)):
+            bounds = [{"value": lp, "name": "lp (expected)", "holds_for": "adaptive"},
+                      {"value": relaxed, "name": "milp (expected)", "holds_for": "open-loop"}]
             extra = {"upper_bound_return": 20.0, "solver_status": "feasible", "best_return": 10.0,
-                     "bound_return": relaxed, "bound_label": "milp (expected)"}
+                     "bound_return": relaxed, "bound_label": "milp (expected)", "lp_bound_return": lp,
+                     "policy_bounds": bounds, "policy_class": "open-loop"}
             _put(store, tasks["milp", layout], [10.0], extra)
             _put(store, tasks["greedy", layout], [15.0], {"upper_bound_return": 20.0})
+        # layout 2, stored before policy_bounds: its milp (expected) bound holds for no one
+        _put(store, tasks["milp", 2], [10.0], {"upper_bound_return": 20.0, "solver_status": "feasible",
+                                                "best_return": 10.0, "bound_return": 11.0,
+                                                "bound_label": "milp (expected)", "lp_bound_return": 16.0})
+        _put(store, tasks["greedy", 2], [15.0], {"upper_bound_return": 20.0})
         rows, _ = tables.aggregate(exp, store)
-    greedy = next(r for r in rows if r.algorithm == "greedy")
-    assert greedy.bound == "milp (expected) 1/2, upper 1/2" or greedy.bound == "upper 1/2, milp (expected) 1/2"
-    # a closed-loop policy may beat the expected-rate relaxation: a negative gap, labelled so
-    assert greedy.summaries[tables.GAP_BOUND].min == pytest.approx((12.0 - 15.0) / 12.0)
-    assert greedy.summaries[tables.GAP_BOUND].max == pytest.approx((20.0 - 15.0) / 20.0)
+    greedy, milp = (next(r for r in rows if r.algorithm == name) for name in ("greedy", "milp"))
+    assert greedy.bound == "lp (expected) 2/3, upper 1/3"
+    assert sorted(greedy.summaries[tables.GAP_BOUND].__dict__[k] for k in ("min", "max")) == pytest.approx(
+        [(14.0 - 15.0) / 14.0, (20.0 - 15.0) / 20.0])
+    assert greedy.summaries[tables.GAP_BOUND].mean == pytest.approx(((14 - 15) / 14 + 5 / 20 + 1 / 16) / 3)
+    # the open-loop plan: upper, then its own MILP bound, then the old record's LP
+    assert milp.bound in ("upper 1/3, milp (expected) 1/3, lp (expected) 1/3",
+                          "milp (expected) 1/3, upper 1/3, lp (expected) 1/3")
+    assert milp.summaries[tables.GAP_BOUND].mean == pytest.approx((10 / 20 + 2 / 12 + 6 / 16) / 3)
 
 
 @pytest.mark.parametrize(("channel", "label"), [({}, "milp"), ({"channel": "shadowing"}, "milp (expected)"),
