@@ -47,9 +47,9 @@ from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
 
 #: Overrides of the ``tiny`` preset: Rayleigh fading (Rician with K = 0) and link failures of
-#: 5-25 % per step; the SNR threshold at 97 dB, where the tiny preset's links (95-102 dB mean
-#: SNR) lose a quarter to three quarters of their steps to fades (at 10 dB a Rayleigh fade
-#: would almost never matter there); Gamma = 1, so that only data counts; a movement weight
+#: 5-25 % per step; the SNR threshold at 97 dB, where the links of this layout (97-106 dB
+#: mean SNR) lose 13-60 % of their steps to fades (at 10 dB a Rayleigh fade would almost
+#: never matter there); Gamma = 1, so that only data counts; a movement weight
 #: of 0.1 (five times the default), so that a wasted move costs something; layout 2, where
 #: every node is coverable (so an episode can end early) and one cell covers two nodes.
 TINY_FADING: dict[str, Any] = {

@@ -9,7 +9,13 @@ import itertools
 import numpy as np
 import pytest
 
-from planners.adaptive import TINY_FADING, AdaptivePolicy, adaptive_optimum, gain_survival, open_loop_value
+from planners.adaptive import (
+    TINY_FADING,
+    AdaptivePolicy,
+    adaptive_optimum,
+    gain_survival,
+    open_loop_value,
+)
 from planners.bounds import ADAPTIVE, OPEN_LOOP, exact_optimum
 from planners.hindsight import Draws, hindsight_walk, replay
 from planners.optimal import MilpBudget, policy_bounds, solve_optimum
@@ -74,10 +80,13 @@ def test_adapting_to_the_draws_beats_every_open_loop_walk_and_the_milp_bound():
     two steps). Adaptive: hover in A (0.8 x 0.5 - 0.1); if the link worked, hover again (0.4
     more at 0.8), else move to B (1 at 0.8, for 0.4): 0.3 + 0.8 x 0.3 + 0.2 x 0.4 = 0.62.
     Open loop: (A, A) 0.8 - 0.2 = 0.6, (B, B) 0.8 + 0.2 x 0.8 - 0.4 - 0.2 x 0.1 = 0.54,
-    (A, B) 0.38, (B, A) 0.46. The MILP's walks: (A, A) 0.6, (A, B) and (B, B) 0.5, so its
-    proven bound 0.6 is below what the adaptive policy earns; the LP (0.4 (A, B) + ... in the
-    convex hull of walks) and perfect information are above it, at 0.68."""
+    (B, A) 0.8 - 0.4 + 0.2 x (0.4 - 0.4) = 0.4, (A, B) 0.38. The MILP's walks: (A, A) 0.6,
+    (A, B) and (B, B) 0.5, so its proven bound 0.6 is below what the adaptive policy earns;
+    the LP (the mixture 0.6 (A, A) + 0.3 (A, B) + 0.1 (B, B) of walks) and perfect
+    information are above it, at 0.68."""
     scenario, tables = two_cells(covers_a=True, fail=0.2, steps=2, stay_cost=0.1, move_cost=0.4)
+    walks = ((K.HOVER, K.HOVER), (0, K.HOVER), (0, 1), (K.HOVER, 0))  # (A, A), (B, B), (B, A), (A, B)
+    assert [open_loop_value(scenario, list(w), tables=tables) for w in walks] == pytest.approx([0.6, 0.54, 0.4, 0.38])
     optimum = adaptive_optimum(scenario, tables=tables)
     assert optimum.value == pytest.approx(0.62, abs=1e-12)
     assert optimum.policy[(0, next(k for (t, k) in optimum.policy if t == 0))] == K.HOVER
@@ -112,8 +121,9 @@ def test_an_open_loop_walk_that_ends_early_beats_the_milp_bound():
 
 def test_the_milp_bound_holds_for_open_loop_plans_when_no_walk_can_end_early():
     """Layout 0 of tiny leaves a node that no cell covers: no episode ends early, and the
-    MILP's bound then bounds the exact value of its own plan (and of any open-loop plan)."""
-    scenario = Scenario.preset("tiny", **{**TINY_FADING, "layout_seed": 0})
+    MILP's bound then bounds the exact value of its own plan (and of any open-loop plan);
+    at 99 dB the bound is strictly below the LP's, so the table may use it."""
+    scenario = Scenario.preset("tiny", **{**TINY_FADING, "layout_seed": 0, "snr_threshold_db": 99.0})
     result = solve_optimum(scenario, budget=EXACT)
     bounds = {b.name: b for b in policy_bounds(result)}
     assert bounds["milp (expected)"].holds_for == OPEN_LOOP and bounds["lp (expected)"].holds_for == ADAPTIVE

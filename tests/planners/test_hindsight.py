@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from planners.adaptive import TINY_FADING
-from planners.hindsight import Draws, HindsightBudget, hindsight_bound, hindsight_walk, replay, step_amounts
+from planners.hindsight import (
+    Draws,
+    HindsightBudget,
+    hindsight_bound,
+    hindsight_walk,
+    replay,
+    step_amounts,
+)
 from swiptopt import Scenario
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError

@@ -12,7 +12,12 @@ from planners.hindsight import HindsightBudget, hindsight_bound
 from planners.optimal import MilpBudget, solve_optimum
 from swiptopt import Scenario, evaluate
 from swiptopt.benchmark import tables
-from swiptopt.benchmark.algorithms import ALGORITHMS, build_policy, quick_settings, task_extra
+from swiptopt.benchmark.algorithms import (
+    ALGORITHMS,
+    build_policy,
+    quick_settings,
+    task_extra,
+)
 from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment
 from swiptopt.benchmark.runner import run_task
 from swiptopt.benchmark.store import ResultStore
