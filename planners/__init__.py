@@ -24,17 +24,22 @@ Everything a user needs is importable from here::
   trained model on the kernel env;
 - the optimum as the reference: :func:`solve_optimum` (the episode as a mixed-integer
   program, HiGHS: best walk, proven bound, gap) and its policy :class:`MilpPlanner`; the
-  per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`.
+  per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`;
+  :func:`policy_bounds` (which of its bounds holds for which class of policy),
+  :func:`hindsight_bound` (perfect information) and :func:`adaptive_optimum` (the exact
+  optimal adaptive policy of a small instance): docs/optimum.md.
 
 The solvers (ortools, ompl, cvxpy, highspy, scikit-learn, scipy) load inside the functions that use them,
 so ``import planners`` stays light; a test checks that it imports none of them.
 """
 
-from planners.bounds import ExactOptimum, UpperBound, exact_optimum, exact_state_bound, upper_bound
+from planners.adaptive import AdaptiveOptimum, AdaptivePolicy, adaptive_optimum
+from planners.bounds import ExactOptimum, PolicyBound, UpperBound, exact_optimum, exact_state_bound, upper_bound
 from planners.clustering import HoverPoints, kmeans_hover_points
 from planners.continuous import ContinuousPlan, OmplTourPlanner, StraightLinePlanner
 from planners.grid import bfs_distances, distance_matrix, path_actions
-from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, solve_optimum
+from planners.hindsight import HindsightBudget, HindsightResult, hindsight_bound
+from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, policy_bounds, solve_optimum
 from planners.paths3d import PathResult, available_planners, path_energy_j, plan_path_3d, segments_free
 from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner, Plan, Stop
 from planners.power_split import (
@@ -57,12 +62,16 @@ from planners.tsp import TspResult, held_karp, solve_tsp, tour_length
 from planners.walk_search import polish_walk
 
 __all__ = [
+    "AdaptiveOptimum",
+    "AdaptivePolicy",
     "BUDGETS",
     "ContinuousPlan",
     "ContinuousStopChoiceEnv",
     "DwellSplitProblem",
     "ExactOptimum",
     "GreedyPlanner",
+    "HindsightBudget",
+    "HindsightResult",
     "HoverPoints",
     "KMeansTspPlanner",
     "LawnmowerPlanner",
@@ -72,6 +81,7 @@ __all__ = [
     "OptimumResult",
     "PathResult",
     "Plan",
+    "PolicyBound",
     "PowerSplitResult",
     "RateGreedyPlanner",
     "RewardKMeansTspPlanner",
@@ -83,12 +93,14 @@ __all__ = [
     "StraightLinePlanner",
     "TspResult",
     "UpperBound",
+    "adaptive_optimum",
     "available_planners",
     "bfs_distances",
     "distance_matrix",
     "exact_optimum",
     "exact_state_bound",
     "held_karp",
+    "hindsight_bound",
     "kmeans_hover_points",
     "make_stop_env",
     "optimal_split_ratio",
@@ -96,6 +108,7 @@ __all__ = [
     "path_actions",
     "path_energy_j",
     "plan_path_3d",
+    "policy_bounds",
     "polish_walk",
     "rate_greedy_actions",
     "segments_free",
