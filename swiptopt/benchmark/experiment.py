@@ -570,14 +570,20 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
 #: ``learning-curve-harbour-across``): the same tasks, so the same models. Those models are
 #: shipped (swiptopt/benchmark/pretrained), so ``compare`` evaluates them instead of training
 #: them; ``--retrain`` trains them afresh (hours on two cores).
-COMPARE_DEEP_TIMESTEPS = {"ppo": _doubled(_GRID_CURVE)[-1], "dqn": _doubled(_GRID_CURVE)[-1],
-                          "stop_ppo": _doubled(_STOP_CURVE)[-1]}
+#: The budgets across layouts: the curves' doubled, and doubled once more for the curves
+#: that were still rising at their last budget (DQN on the grid, PPO and SAC in the harbour).
+ACROSS_BUDGETS = {
+    "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2],
+             "stop_ppo": _doubled(_STOP_CURVE)},
+    "harbour": {"ppo": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2], "sac": _doubled(_SAC_CURVE) + [4 * _SAC_CURVE[-1]],
+                "stop_ppo": _doubled(_STOP_CURVE)},
+}
+COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}
 _COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"} for name, steps in COMPARE_DEEP_TIMESTEPS.items()}
 #: The harbour suite: the continuous world on the harbour preset (a pier, a moored hull, a
 #: wreck, a sloping seabed and a current), where straight lines are wrong.
 _HARBOUR_LAYOUTS = 8
-HARBOUR_DEEP_TIMESTEPS = {"ppo": _doubled(_GRID_CURVE)[-1], "sac": _doubled(_SAC_CURVE)[-1],
-                          "stop_ppo": _doubled(_STOP_CURVE)[-1]}
+HARBOUR_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["harbour"].items()}
 _HARBOUR_ALGORITHMS = {
     "ompl_tour": {},
     "straight_line": {},
@@ -622,7 +628,7 @@ def learning_curves() -> list[Experiment]:
             f"{_COMPARE_LAYOUTS} layouts (3 seeds), as compare trains them",
             scenario={"preset": "paper", "n_nodes": 25},
             algorithms={"ppo": across, "dqn": across, "stop_ppo": across, **grid_planners},
-            budgets={"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE), "stop_ppo": _doubled(_STOP_CURVE)},
+            budgets=ACROSS_BUDGETS["grid"],
             layouts=_COMPARE_LAYOUTS, training_layouts=tuple(range(_COMPARE_LAYOUTS)), baseline="milp", **common,
         ),
         _builtin(
@@ -642,7 +648,7 @@ def learning_curves() -> list[Experiment]:
             world=CONTINUOUS,
             scenario={"preset": "harbour"},
             algorithms={"ppo": across, "sac": across, "stop_ppo": across, **harbour_planners},
-            budgets={"ppo": _doubled(_GRID_CURVE), "sac": _doubled(_SAC_CURVE), "stop_ppo": _doubled(_STOP_CURVE)},
+            budgets=ACROSS_BUDGETS["harbour"],
             layouts=_HARBOUR_LAYOUTS, training_layouts=tuple(range(_HARBOUR_LAYOUTS)), baseline="ompl_tour",
             **common,
         ),
