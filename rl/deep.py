@@ -513,6 +513,15 @@ def _new_model(config: DeepConfig, env: Any, scenario: Scenario | None) -> Any:
                           "hyperparams") from None
 
 
+def _silence(model: Any) -> None:
+    """Give the model a logger that writes nothing: SB3's default one makes a directory under
+    the system's temporary folder for every training run, and nothing is written outside
+    the directories the user named."""
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+
+
 def rollout_steps(config: DeepConfig) -> int:
     """Environment steps between two points where training can stop: an on-policy
     algorithm's rollout (``n_envs * n_steps``), one step of every copy otherwise."""
@@ -574,6 +583,7 @@ def train_deep(
     pin_torch()
     env, scenario = _training_env(scenario_or_env, config)
     model = _new_model(config, env, scenario)
+    _silence(model)
     log, saver = _callbacks(checkpoints or {})
     start, cpu = time.perf_counter(), time.process_time()
     try:

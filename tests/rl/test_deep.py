@@ -325,3 +325,15 @@ def test_an_algorithm_that_cannot_take_the_worlds_actions_is_one_line(algorithm,
     message = str(info.value)
     assert f"{algorithm} cannot act on {space}" in message and f"the {world} world's actions" in message
     assert info.value.field == "world" and "\n" not in message
+
+
+def test_training_writes_nothing_outside_the_directories_named(tmp_path, monkeypatch):
+    """SB3's default logger makes a folder under the system's temporary directory per run;
+    training here gives the model a logger that writes nothing."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    _train("ppo", timesteps=128)
+    train_deep("dqn", TINY, 128, 0, hyperparams=SETTINGS["dqn"], policy_kwargs=NET, n_envs=2)
+    assert list(tmp_path.iterdir()) == []
