@@ -353,7 +353,14 @@ def pin_torch() -> None:
         torch.set_num_interop_threads(1)
     except RuntimeError:
         pass  # already set, or parallel work already ran in this process
-    torch.use_deterministic_algorithms(True)
+    # torch.use_deterministic_algorithms(True) also configures torch's compiler (unused here),
+    # whose import makes a cache folder under the system's temporary directory: set the
+    # flag itself, which is all the eager CPU kernels read
+    set_deterministic = getattr(torch._C, "_set_deterministic_algorithms", None)
+    if set_deterministic is not None:
+        set_deterministic(True)
+    else:  # pragma: no cover - another torch
+        torch.use_deterministic_algorithms(True)
 
 
 def _versions() -> dict[str, str]:
