@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from swiptopt import fpmath
 from swiptopt import kernel as K
 from swiptopt.acoustics import link_rate_bps
 from swiptopt.errors import ConfigError
@@ -85,7 +86,7 @@ def gain_survival(tables: K.Tables, threshold_gain: np.ndarray) -> np.ndarray:
     if channel == 1:
         scale = p[K.P_SIGMA_DB] * K.LN10_OVER_10
         with np.errstate(divide="ignore"):
-            z = np.log(np.maximum(x, 0.0)) / scale
+            z = fpmath.log(np.maximum(x, 0.0)) / scale
         return np.array([0.5 * math.erfc(v / math.sqrt(2.0)) for v in z.ravel()]).reshape(x.shape)
     k = p[K.P_RICIAN_K]
     if k == 0.0:
@@ -158,8 +159,8 @@ class _Branching:
             # gains of 4x and 1/4 the needed one: the kernel's gain lands far from the threshold
             if int(p[K.P_CHANNEL]) == 1:
                 scale = p[K.P_SIGMA_DB] * K.LN10_OVER_10
-                ok_z[:, 0] = np.log(4.0 * need) / scale
-                no_z[:, 0] = np.log(need / 4.0) / scale
+                ok_z[:, 0] = fpmath.log(4.0 * need) / scale
+                no_z[:, 0] = fpmath.log(need / 4.0) / scale
             else:
                 k = p[K.P_RICIAN_K]
                 los, scatter = math.sqrt(k / (k + 1.0)), math.sqrt(0.5 / (k + 1.0))

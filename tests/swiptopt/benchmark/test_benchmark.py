@@ -167,7 +167,7 @@ def test_builtin_lookup():
     assert load_experiment("compare").name == "compare"
     builtins = builtin_experiments()
     planners_and_agents = {"q_learning", "sarsa", "random", "kmeans_tsp", "lawnmower", "greedy", "rate_greedy"}
-    assert set(builtins["compare"].algorithms) == planners_and_agents | {"milp", "ppo", "dqn"}
+    assert set(builtins["compare"].algorithms) == planners_and_agents | {"milp", "ppo", "dqn", "stop_ppo"}
     assert builtins["compare"].algorithms["milp"] == {"budget": "compare"}
     optimum = builtins["optimum"]
     assert set(optimum.algorithms) == planners_and_agents | {"milp"}

@@ -223,7 +223,7 @@ def test_compare_prints_the_same_tables_on_every_executor_and_every_run(tmp_path
             capture_output=True, text=True,
         )
         assert result.returncode == 0, result.stderr
-        assert "20 tasks: 0 already stored, 20 run" in result.stderr and "missing" not in result.stderr
+        assert "22 tasks: 0 already stored, 22 run" in result.stderr and "missing" not in result.stderr
         tables[name] = output.read_text()
         assert tables[name] == result.stdout
     assert "| k-means + TSP |" in tables["workers1"] and "×" in tables["workers1"]

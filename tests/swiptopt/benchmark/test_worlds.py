@@ -107,7 +107,7 @@ def test_an_algorithm_outside_its_worlds_is_refused_naming_them(name, world, wor
 def test_every_algorithm_declares_its_worlds():
     assert all(a.worlds and set(a.worlds) <= set(WORLDS) for a in ALGORITHMS.values())
     both = {n for n, a in ALGORITHMS.items() if set(a.worlds) == set(WORLDS)}
-    assert both == {"ppo", "random"}
+    assert both == {"ppo", "stop_ppo", "random"}
     assert {n for n, a in ALGORITHMS.items() if a.worlds == ("continuous",)} == {"sac", "ompl_tour", "straight_line"}
     for name, algorithm in ALGORITHMS.items():
         for world in algorithm.worlds:
@@ -117,7 +117,7 @@ def test_every_algorithm_declares_its_worlds():
 def test_the_harbour_suite_is_the_continuous_world_with_a_straight_line_baseline():
     harbour = builtin_experiments()["harbour"]
     assert harbour.world == "continuous" and harbour.scenario == {"preset": "harbour"}
-    assert set(harbour.algorithms) == {"ompl_tour", "straight_line", "sac", "ppo", "random"}
+    assert set(harbour.algorithms) == {"ompl_tour", "straight_line", "sac", "ppo", "stop_ppo", "random"}
     assert harbour.baseline == "straight_line" and harbour.layout_seeds() == tuple(range(8))
     assert harbour.training_layouts == harbour.layout_seeds()
     assert all(t.world == "continuous" for t in harbour.tasks())
@@ -127,7 +127,8 @@ def test_the_harbour_suite_is_the_continuous_world_with_a_straight_line_baseline
 def test_ompl_tasks_are_named_by_their_algorithm():
     harbour = builtin_experiments()["harbour"].quick()
     by_algorithm = {t.algorithm: uses_ompl(t.to_dict()) for t in harbour.tasks()}
-    assert by_algorithm == {"ompl_tour": True, "straight_line": False, "sac": False, "ppo": False, "random": False}
+    assert by_algorithm == {"ompl_tour": True, "straight_line": False, "sac": False, "ppo": False, "stop_ppo": False,
+                            "random": False}
     grid = Experiment(name="g", scenario={"preset": "tiny"},
                       algorithms={"kmeans_tsp": {"tour_costs": "ompl"}, "greedy": {}})
     assert {t.algorithm: uses_ompl(t.to_dict()) for t in grid.tasks()} == {"kmeans_tsp": True, "greedy": False}
@@ -203,7 +204,7 @@ def test_a_plugin_declares_its_worlds(tmp_path, monkeypatch):
 
 
 def test_compare_quick_harbour_prints_the_same_tables_with_one_worker_or_two(tmp_path, capsys):
-    """The harbour suite at --quick (2 layouts, SAC and PPO at 1024 steps, one training
+    """The harbour suite at --quick (2 layouts, SAC, PPO and the stop-choosing agent at small budgets, one training
     seed, the OMPL tour at its quick budget): run twice, the second time on two workers and a
     new store beside the first's models (so every task runs again: the OMPL tours in fresh
     processes, the deep-RL tasks on the loaded models), the same tables."""
@@ -213,15 +214,15 @@ def test_compare_quick_harbour_prints_the_same_tables_with_one_worker_or_two(tmp
     args = ["compare", "--quick", "--suite", "harbour", "--format", "markdown"]
     assert main([*args, "--store", str(tmp_path / "a.sqlite"), "--workers", "1"]) == 0
     first, err = capsys.readouterr()
-    assert "10 tasks: 0 already stored, 10 run" in err
+    assert "12 tasks: 0 already stored, 12 run" in err
     assert main([*args, "--store", str(tmp_path / "b.sqlite"), "--workers", "2"]) == 0
     second, err = capsys.readouterr()
-    assert "10 tasks: 0 already stored, 10 run" in err
+    assert "12 tasks: 0 already stored, 12 run" in err
     assert second == first
     assert first.startswith("**harbour (continuous world)**")
-    for label in ("OMPL tour", "straight line", "SAC", "PPO", "random"):
+    for label in ("OMPL tour", "straight line", "SAC", "PPO", "stop-choosing PPO", "random"):
         assert f"| {label} |" in first
-    assert first.count("×") == 4 * 5  # the paired table: four algorithms against the straight line
+    assert first.count("×") == 5 * 5  # the paired table: five algorithms against the straight line
 
 
 def test_the_continuous_planners_settings_are_theirs():
