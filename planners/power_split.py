@@ -587,6 +587,8 @@ class DwellSplitProblem:
                 break
             notes.append(note or f"{name}: {status}")
             status = "solver_error"
+            if OPTIONS_REFUSED in note:  # the user's options are wrong: fallbacks would drop them
+                break
         if status == "solver_error":
             note = "; ".join(notes)
         elapsed = time.perf_counter() - start
@@ -768,6 +770,10 @@ def _time_scale(budgets: Mapping[str, Any]) -> float:
     return scale if scale > 0 else 1.0
 
 
+#: The note of a solve whose solver refused ``solver_options``.
+OPTIONS_REFUSED = "solver_options refused"
+
+
 def _run(problem: Any, solver: str, options: Mapping[str, Any]) -> tuple[str, str]:
     """Solve ``problem`` with ``solver``; (status, message)."""
     cp = _cvxpy()
@@ -778,6 +784,12 @@ def _run(problem: Any, solver: str, options: Mapping[str, Any]) -> tuple[str, st
             problem.solve(solver=solver, **options)
     except cp.error.SolverError as exc:
         return "solver_error", f"{solver}: {str(exc).splitlines()[0]}"
+    except TypeError as exc:  # the solver refuses an option: no other attempt would use them
+        return "solver_error", f"{solver}: {OPTIONS_REFUSED}: {(str(exc).splitlines() or [''])[0][:200]}"
+    except (ValueError, ArithmeticError) as exc:
+        # a solver that cannot set up numbers this large (SCS's allocation ValueError) has
+        # failed to solve: a status, like SolverError
+        return "solver_error", f"{solver}: {type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:200]}"
     status = _status(problem.status)
     return status, ("" if status == "optimal" else f"{solver}: {problem.status}")
 

@@ -194,6 +194,87 @@ def _constructor_arguments(cls: type) -> set[str]:
     return names
 
 
+#: Ranges of SB3's numeric constructor arguments, checked before SB3 sees them (SB3 takes
+#: some out-of-range values and fails later, mid-training): (low, high, whether low is
+#: allowed, the kind). A callable (a schedule) is not checked.
+HYPERPARAM_BOUNDS: dict[str, tuple[float, float, bool, str]] = {
+    "n_steps": (1, 1 << 30, True, "int"),
+    "batch_size": (2, 1 << 30, True, "int"),
+    "n_epochs": (1, 10_000, True, "int"),
+    "buffer_size": (1, 1 << 34, True, "int"),
+    "learning_starts": (0, 1 << 40, True, "int"),
+    "gradient_steps": (-1, 1 << 20, True, "int"),
+    "target_update_interval": (1, 1 << 40, True, "int"),
+    "exploration_steps": (1, 1 << 40, True, "int"),
+    "learning_rate": (0.0, math.inf, False, "float"),
+    "gamma": (0.0, 1.0, True, "float"),
+    "gae_lambda": (0.0, 1.0, True, "float"),
+    "tau": (0.0, 1.0, False, "float"),
+    "ent_coef": (0.0, math.inf, True, "float"),
+    "vf_coef": (0.0, math.inf, True, "float"),
+    "clip_range": (0.0, math.inf, False, "float"),
+    "max_grad_norm": (0.0, math.inf, False, "float"),
+    "exploration_fraction": (0.0, 1.0, True, "float"),
+    "exploration_initial_eps": (0.0, 1.0, True, "float"),
+    "exploration_final_eps": (0.0, 1.0, True, "float"),
+}
+#: The widest hidden layer and the most layers a network of ``net_arch`` may have.
+MAX_LAYER_WIDTH = 65_536
+MAX_LAYERS = 64
+
+
+def _check_bound(name: str, value: Any, bound: tuple[float, float, bool, str] | None) -> None:
+    if bound is None or callable(value):
+        return
+    low, high, closed, kind = bound
+    number = isinstance(value, (int, np.integer)) if kind == "int" else isinstance(value, (int, float, np.number))
+    if not isinstance(value, bool) and number and (value >= low if closed else value > low) and value <= high \
+            and math.isfinite(value):
+        return
+    what = "an integer" if kind == "int" else "a number"
+    show = (lambda x: f"{int(x):,}") if kind == "int" else (lambda x: f"{x:g}")
+    lower = f">= {show(low)}" if closed else f"> {show(low)}"
+    upper = "" if math.isinf(high) else f" and <= {show(high)}"
+    raise ConfigError(f"{name} = {value!r} must be {what} {lower}{upper}", name.partition(".")[0])
+
+
+def _check_layers(name: str, layers: Any) -> None:
+    if not isinstance(layers, (list, tuple)) or len(layers) > MAX_LAYERS or not all(
+            isinstance(w, (int, np.integer)) and not isinstance(w, bool) and 1 <= w <= MAX_LAYER_WIDTH for w in layers):
+        raise ConfigError(
+            f"{name} = {layers!r} must be a list of at most {MAX_LAYERS} layer widths, each an integer in "
+            f"[1, {MAX_LAYER_WIDTH:,}]", "policy_kwargs")
+
+
+def _check_policy_kwargs(cls: type, policy_kwargs: Mapping[str, Any]) -> None:
+    """``policy_kwargs`` that ``cls``'s ``MlpPolicy`` takes, with a well-formed ``net_arch``."""
+    policy = getattr(cls, "policy_aliases", {}).get("MlpPolicy")
+    if policy is not None:
+        allowed = sorted(_constructor_arguments(policy) - {"self", "observation_space", "action_space", "lr_schedule"})
+        for key in policy_kwargs:
+            if key not in allowed:
+                raise ConfigError(f"unknown policy_kwargs key {key!r}{did_you_mean(key, allowed)}: "
+                                  f"{policy.__name__} takes {', '.join(allowed)}", "policy_kwargs")
+    arch = policy_kwargs.get("net_arch")
+    if isinstance(arch, Mapping):
+        for key, layers in arch.items():
+            _check_layers(f"policy_kwargs.net_arch.{key}", layers)
+    elif arch is not None:
+        _check_layers("policy_kwargs.net_arch", arch)
+
+
+def _blame(exc: BaseException) -> str:
+    """The argument an error SB3 raised while building a model comes from: ``policy_kwargs``
+    when the failing code is the policy's or torch's (a network it cannot build), else
+    ``hyperparams``."""
+    import traceback
+
+    files = [frame.filename.replace("\\", "/") for frame in traceback.extract_tb(exc.__traceback__)]
+    policy_code = ("stable_baselines3/common/policies.py", "stable_baselines3/common/torch_layers.py",
+                   "/policies.py", "torch/nn/")
+    return "policy_kwargs" if files and any(part in files[-1] for part in policy_code) else "hyperparams"
+
+
 def _plain(name: str, value: Any) -> Any:
     """``value`` if it is JSON-able plain data (what a configuration may hold), else an error."""
     try:
@@ -252,8 +333,11 @@ class DeepConfig:
         object.__setattr__(self, "layout_seeds", seeds)
 
     def check_hyperparams(self) -> None:
-        """Unknown SB3 arguments are errors naming the allowed ones (imports SB3)."""
-        allowed = sorted(_constructor_arguments(_algorithm_class(self.algorithm)) - {"self", *_RESERVED})
+        """Unknown SB3 arguments, SB3 arguments out of their ranges (:data:`HYPERPARAM_BOUNDS`)
+        and ``policy_kwargs`` the algorithm's policy does not take or cannot build are errors
+        naming the argument and what is allowed (imports SB3)."""
+        cls = _algorithm_class(self.algorithm)
+        allowed = sorted(_constructor_arguments(cls) - {"self", *_RESERVED})
         for key in self.hyperparams:
             if key in _RESERVED:
                 raise ConfigError(
@@ -267,6 +351,9 @@ class DeepConfig:
                     f"{', '.join(allowed)}",
                     "hyperparams",
                 )
+        for key, value in self.hyperparams.items():
+            _check_bound(f"hyperparams.{key}", value, HYPERPARAM_BOUNDS.get(key))
+        _check_policy_kwargs(cls, self.policy_kwargs)
 
     def replace(self, **changes: Any) -> DeepConfig:
         return dataclasses.replace(self, **changes)
@@ -516,8 +603,15 @@ def _new_model(config: DeepConfig, env: Any, scenario: Scenario | None) -> Any:
         if "action spaces" in str(exc) or "action space" in str(exc).lower() and "support" in str(exc).lower():
             whose = f"the {config.world} world's actions" if scenario is not None else "the environment's actions"
             raise ConfigError(f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world") from None
-        raise ConfigError(f"{config.algorithm} rejected its settings: {type(exc).__name__}: {exc}",
-                          "hyperparams") from None
+        field_name = _blame(exc)
+        raise ConfigError(f"{config.algorithm} rejected its {field_name}: {type(exc).__name__}: {_short(exc)}",
+                          field_name) from None
+
+
+def _short(exc: BaseException, limit: int = 300) -> str:
+    """An exception's message on one line, at most ``limit`` characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _silence(model: Any) -> None:
@@ -596,7 +690,7 @@ def train_deep(
     try:
         model.learn(total_timesteps=config.timesteps, callback=[log, saver], progress_bar=False)
     except (ValueError, RuntimeError, UnboundLocalError) as exc:  # settings SB3 accepted but cannot train with
-        raise ConfigError(f"{config.algorithm} failed to train with its settings: {type(exc).__name__}: {exc}",
+        raise ConfigError(f"{config.algorithm} failed to train with its settings: {type(exc).__name__}: {_short(exc)}",
                           "hyperparams") from None
     return DeepResult(
         model=model,

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -47,6 +47,33 @@ STOP_SHORT_M = 1e-6
 SEABED_SAMPLE_M = 0.25
 #: Bisection steps after the first sample below the seabed (resolution 0.25 m / 2**40).
 SEABED_BISECTIONS = 40
+
+
+def describe_array(value: Any) -> str:
+    """A short description of what was given where an array was expected (its dtype and
+    shape, not its elements: an error message stays one short line)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        return f"{type(value).__name__} that is not an array ({type(exc).__name__})"
+    if a.size <= 8 and a.dtype.kind in "biuf":
+        return repr(a.tolist())
+    return f"an array of dtype {a.dtype} and shape {a.shape}"
+
+
+def real_actions(actions: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``actions`` as float64 of ``shape`` (each row x, y, depth); a one-line ValueError for
+    anything else. Complex numbers are refused, never truncated to their real part. A
+    one-dimensional ``shape`` takes any array of as many numbers (one env's action)."""
+    try:
+        a = np.asarray(actions)
+    except (TypeError, ValueError):
+        a = None
+    fits = a is not None and (a.shape == shape or (len(shape) == 1 and a.size == shape[0]))
+    if not fits or a.dtype.kind not in "biuf":
+        raise ValueError(f"actions must be {shape} real numbers (x, y, depth) in [-1, 1], "
+                         f"got {describe_array(actions)}")
+    return a.astype(np.float64).reshape(shape)
 
 # Indices into ``World.world``, the continuous world's scalar parameters.
 (

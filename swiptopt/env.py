@@ -8,6 +8,7 @@ plan executor use.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import OrderedDict
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
@@ -39,6 +40,21 @@ LAYOUT_CACHE_SIZE = 64
 
 #: Layout seeds are those of :attr:`Scenario.layout_seed`.
 _MAX_LAYOUT_SEED = 2**63 - 1
+
+
+def _grid_action(action: Any) -> int:
+    """``action`` as a move index; a one-line ValueError for anything but one integer (or
+    integral float) in [0, N_ACTIONS): 2.7 or "3" are refused, never truncated or parsed."""
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError):
+        a = None
+    ok = a is not None and a.size == 1 and a.dtype.kind in "iuf"
+    value = a.reshape(-1)[0].item() if ok else None
+    if not ok or not math.isfinite(value) or value != math.floor(value) or not 0 <= value < K.N_ACTIONS:
+        shown = repr(action) if ok or (a is not None and a.size <= 8) else f"an array of shape {np.shape(a)}"
+        raise ValueError(f"action must be an integer in [0, {K.N_ACTIONS - 1}], got {shown[:80]}")
+    return int(value)
 
 
 class EpisodeMetrics(Mapping):
@@ -374,9 +390,7 @@ class AuvSwiptEnv(LayoutEnv):
     def step(self, action):
         if self._done:
             raise RuntimeError("call reset() before step() (the episode has ended)")
-        a = int(action)
-        if not 0 <= a < K.N_ACTIONS:
-            raise ValueError(f"action must be an integer in [0, {K.N_ACTIONS - 1}], got {action!r}")
+        a = _grid_action(action)
         if self._refill:
             K.refill_noise(self.np_random, self.tables, self._uniforms, self._normals, self.state.where)
         if self._vector:

@@ -168,10 +168,7 @@ class AuvSwiptContinuousEnv(LayoutEnv):
     def step(self, action):
         if self._done:
             raise RuntimeError("call reset() before step() (the episode has ended)")
-        a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (C.ACTION_DIM,):
-            raise ValueError(f"action must hold {C.ACTION_DIM} numbers (x, y, depth) in [-1, 1], got {action!r}")
-        self._action[:] = a
+        self._action[:] = C.real_actions(action, (C.ACTION_DIM,))
         if self._refill:
             K.refill_noise(self.np_random, self.world, self._uniforms, self._normals, self.state.where)
         code, blocked, self._refill = self._step(self._action, self._uniforms, self._normals, *self._args)

@@ -561,15 +561,10 @@ class AuvSwiptVectorEnv(VectorEnv):
             if ok and a.dtype.kind == "f":
                 ok = bool(np.all(a == np.floor(a)))  # integral floats are actions; NaN is not
             if not (ok and a.min() >= 0 and a.max() < K.N_ACTIONS):
-                raise ValueError(f"actions must be ({n},) integers in [0, {K.N_ACTIONS - 1}], got {actions!r}")
+                raise ValueError(f"actions must be ({n},) integers in [0, {K.N_ACTIONS - 1}], "
+                                 f"got {C.describe_array(actions)}")
             return a.astype(np.int64)
-        try:
-            a = np.array(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            a = None
-        if a is None or a.shape != (n, C.ACTION_DIM):
-            raise ValueError(f"actions must be ({n}, {C.ACTION_DIM}) numbers (x, y, depth) in [-1, 1], got {actions!r}")
-        return a
+        return C.real_actions(actions, (n, C.ACTION_DIM))
 
     def _advance(self, actions: np.ndarray, active: np.ndarray | None) -> None:
         """Step the ``active`` copies (``None``: all): refill the draw buffers that need it

@@ -347,6 +347,26 @@ def test_solver_error_is_a_status():
     assert result.message != ""  # says what was inaccurate or what failed
 
 
+@pytest.mark.parametrize("solver", [None, "SCS", "CLARABEL"])
+def test_options_a_solver_refuses_are_a_status_without_fallbacks(solver):
+    """An unknown solver option is the solver's refusal, reported as a status (not the
+    solver's TypeError), and no fallback solve quietly drops the options."""
+    result = ps.optimise_dwell_and_split(**_good_kwargs(), solver=solver, solver_options={"bogus": 1})
+    assert result.status == "solver_error" and result.dwell_s is None
+    assert ps.OPTIONS_REFUSED in result.message and "bogus" in result.message
+    assert "\n" not in result.message
+
+
+@pytest.mark.filterwarnings("ignore:Solution may be inaccurate")
+def test_an_available_power_too_large_for_the_solvers_is_a_status():
+    """Powers of 1e300 W overflow the solvers' set-up (SCS raised a ValueError): a status."""
+    kwargs = _good_kwargs()
+    kwargs["available_power_w"] = np.where(np.asarray(kwargs["available_power_w"]) > 0, 1e300, 0.0)
+    result = ps.optimise_dwell_and_split(**kwargs)
+    assert result.status in ("solver_error", "optimal_inaccurate", "optimal")
+    assert (result.dwell_s is None) == (result.status == "solver_error")
+
+
 @pytest.mark.parametrize("solver", ["NO_SUCH_SOLVER", "OSQP", "GLOP", 3])
 def test_a_solver_that_cannot_run_the_program_is_a_config_error(solver):
     """Unknown, or installed but without the exponential cone: refused at once, naming it."""

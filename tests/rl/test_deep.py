@@ -241,13 +241,35 @@ def test_bad_configurations_are_config_errors(tmp_path):
         DeepConfig("dqn", 10, layout_seeds=[3, -1])
     with pytest.raises(swiptopt.ConfigError, match="vector"):
         train_deep("dqn", AuvSwiptEnv(TINY), 100)  # the tabular observation
-    with pytest.raises(swiptopt.ConfigError, match="rejected"):
+    with pytest.raises(swiptopt.ConfigError, match="hyperparams.batch_size = 1 must be an integer >= 2"):
         train_deep("ppo", TINY, 100, hyperparams={"batch_size": 1})
     with pytest.raises(swiptopt.ConfigError, match="no saved model"):
         load_deep(tmp_path / "missing.zip", "ppo")
     (tmp_path / "junk.zip").write_bytes(b"not a zip file")
     with pytest.raises(swiptopt.ConfigError, match="not a saved dqn model"):
         load_deep(tmp_path / "junk.zip", "dqn")
+
+
+@pytest.mark.parametrize(("algorithm", "hyperparams", "policy_kwargs", "field", "words"), [
+    ("ppo", {}, {"net_arch": [-1]}, "policy_kwargs", "policy_kwargs.net_arch = [-1] must be a list"),
+    ("ppo", {}, {"net_arch": {"pi": [8], "vf": [0]}}, "policy_kwargs", "policy_kwargs.net_arch.vf = [0]"),
+    ("dqn", {}, {"net_arch": "wide"}, "policy_kwargs", "policy_kwargs.net_arch = 'wide'"),
+    ("ppo", {}, {"bogus": 1}, "policy_kwargs", "unknown policy_kwargs key 'bogus': ActorCriticPolicy takes"),
+    ("ppo", {}, {"activation_fn": "relu"}, "policy_kwargs", "ppo rejected its policy_kwargs: TypeError"),
+    ("ppo", {"n_epochs": 0}, {}, "hyperparams", "hyperparams.n_epochs = 0 must be an integer >= 1"),
+    ("ppo", {"learning_rate": -1.0}, {}, "hyperparams", "hyperparams.learning_rate = -1.0 must be a number > 0"),
+    ("dqn", {"gamma": 1.5}, {}, "hyperparams", "hyperparams.gamma = 1.5 must be a number >= 0 and <= 1"),
+    ("sac", {"tau": 0.0}, {}, "hyperparams", "hyperparams.tau = 0.0 must be a number > 0"),
+])
+def test_settings_sb3_would_fail_on_name_the_right_argument(algorithm, hyperparams, policy_kwargs, field, words):
+    """Refused before training, in one line naming the argument (n_epochs = 0 used to fail
+    mid-training with SB3's UnboundLocalError, net_arch = [-1] with torch's RuntimeError, and
+    policy_kwargs errors were blamed on hyperparams)."""
+    world = "continuous" if algorithm == "sac" else "grid"
+    scenario = swiptopt.Scenario.preset("harbour", n_nodes=3) if algorithm == "sac" else TINY
+    with pytest.raises(swiptopt.ConfigError) as info:
+        train_deep(algorithm, scenario, 64, hyperparams=hyperparams, policy_kwargs=policy_kwargs, world=world)
+    assert info.value.field == field and words in str(info.value) and "\n" not in str(info.value)
 
 
 def test_import_rl_loads_no_torch():

@@ -499,3 +499,15 @@ def test_recent_layouts_stay_built():
     np.testing.assert_array_equal(env.tables.cov_node, first.cov_node)
     env.reset(options={"layout_seed": 100 + LAYOUT_CACHE_SIZE})
     assert env.tables is recent
+
+
+def test_grid_actions_are_integers_never_truncated_or_parsed():
+    """int(action) took 2.7 as move 2 and "3" as move 3; a huge array gave a huge message."""
+    env = AuvSwiptEnv(preset="tiny")
+    env.reset(seed=0)
+    for bad in (2.7, "3", 1j, True, float("nan"), -1, K.N_ACTIONS, np.zeros(10**6), [1, 2]):
+        with pytest.raises(ValueError, match=r"action must be an integer in \[0, 6\]") as info:
+            env.step(bad)
+        assert len(str(info.value)) < 200
+    for good in (3, np.int64(2), 4.0, np.array([1])):
+        env.step(good)

@@ -190,7 +190,7 @@ def test_make_layouts_and_reset_options() -> None:
     np.testing.assert_array_equal(env.unwrapped.world.nodes_m, Scenario.preset("harbour", layout_seed=9).layout.positions_m)
     with pytest.raises(ConfigError, match="unknown reset option"):
         env.reset(options={"layout": 1})
-    with pytest.raises(ValueError, match="3 numbers"):
+    with pytest.raises(ValueError, match=r"\(3,\) real numbers"):
         env.step(np.zeros(2, dtype=np.float32))
 
 
@@ -219,3 +219,15 @@ def test_coverable_nodes() -> None:
         obstacles=(Box(min_m=(0.0, 0.0, 0.0), max_m=(40.0, 40.0, 39.0)),),
     )
     np.testing.assert_array_equal(C.coverable_nodes(scenario), [False, True])
+
+
+def test_actions_that_are_not_three_real_numbers_are_refused_in_one_short_line() -> None:
+    """A complex action was truncated to its real part; a huge one gave a 5 MB message."""
+    env = AuvSwiptContinuousEnv(preset="tiny")
+    env.reset(seed=0)
+    for bad in ([0.5 + 1j, 0.0, 0.0], np.zeros(10**6), "up", [[1, 2], [3]], np.zeros(2)):
+        with pytest.raises(ValueError, match=r"actions must be \(3,\) real numbers") as info:
+            env.step(bad)
+        assert len(str(info.value)) < 200 and "\n" not in str(info.value)
+    _, _, _, _, info = env.step(np.array([[1.0, 0.0, 0.0]]))  # any array of three reals is one action
+    assert not info["blocked"]

@@ -330,8 +330,12 @@ def test_bad_calls():
     env.step(np.array([1.0, 6.0]))  # integral floats are integers
     continuous = AuvSwiptVectorEnv(2, "continuous", preset="tiny")
     continuous.reset(seed=0)
-    for bad in (np.zeros(3), np.zeros((2, 2)), [["a", "b", "c"]] * 2):
+    for bad in (np.zeros(3), np.zeros((2, 2)), [["a", "b", "c"]] * 2, np.full((2, 3), 0.5 + 0.5j)):
         with pytest.raises(ValueError, match="actions"):
             continuous.step(bad)
+    for big in (np.zeros((10**6, 3)), np.zeros(10**6, dtype=np.int64)):  # messages stay one short line
+        with pytest.raises(ValueError) as info:
+            (continuous if big.ndim == 2 else env).step(big)
+        assert len(str(info.value)) < 200 and "\n" not in str(info.value)
     with pytest.raises(ConfigError, match="world"):
         gym.make_vec(swiptopt.ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", world="continuous")
