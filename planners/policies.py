@@ -172,10 +172,6 @@ class _Executor:
         return K.HOVER
 
 
-def _scenario_of(env: Any) -> Scenario:
-    return env.scenario
-
-
 class KMeansTspPlanner(_Executor):
     """k-means hover points -> TSP tour -> convex dwell times -> grid moves and hovers.
 
@@ -215,10 +211,10 @@ class KMeansTspPlanner(_Executor):
         self.seed = seed
 
     def make_plan(self, env: Any) -> Plan:
-        from planners.power_split import optimise_dwell_and_split
+        from planners.power_split import dwell_steps, stop_inputs
         from planners.tsp import solve_tsp
 
-        scenario = _scenario_of(env)
+        scenario = env.scenario
         where = reachable(env.tables)
         tables = where.tables
         # k above the nodes left to group (some may be out of reach) is capped there
@@ -261,28 +257,9 @@ class KMeansTspPlanner(_Executor):
         service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
 
         snr, p_av = hover_link(scenario, np.asarray(order), tables)
-        layout = scenario.layout
-        from swiptopt.link import reward_references
-
-        refs = reward_references(scenario)
-        result = optimise_dwell_and_split(
-            snr_linear=snr,
-            available_power_w=p_av,
-            data_bits=layout.data_bits,
-            storage_room_j=layout.capacity_j - layout.initial_energy_j,
-            mission_time_s=service_steps * scenario.step_duration_s,
-            reward_weight=scenario.reward_weight,
-            bandwidth_hz=scenario.bandwidth_hz,
-            efficiency=scenario.harvest_efficiency,
-            data_ref_bits=refs.data_ref_bits,
-            energy_ref_j=refs.energy_ref_j,
-            split_ratio=scenario.split_ratio,
-        )
-        if result.dwell_s is not None:
-            wanted = np.asarray(result.dwell_s) / scenario.step_duration_s
-        else:
-            wanted = np.full(len(order), service_steps / len(order))
-        dwell = _integer_steps(wanted, service_steps)
+        inputs = stop_inputs(scenario, snr, p_av, mission_time_s=service_steps * scenario.step_duration_s)
+        dwell, result = dwell_steps(inputs, scenario.step_duration_s, service_steps, service_steps,
+                                    split_ratio=scenario.split_ratio)
         stops = [Stop(c, int(d)) for c, d in zip(order, dwell)]
         plan = Plan(
             stops,
@@ -309,17 +286,6 @@ class KMeansTspPlanner(_Executor):
         return costs
 
 
-def _integer_steps(wanted: np.ndarray, total: int) -> np.ndarray:
-    """Whole service steps per stop, at least one each, summing to ``total`` (largest remainder)."""
-    n = len(wanted)
-    if total <= n:
-        return np.ones(n, dtype=np.int64)
-    share = np.maximum(np.asarray(wanted, dtype=float), 0.0)
-    share = share / share.sum() * (total - n) if share.sum() > 0 else np.full(n, (total - n) / n)
-    steps = np.floor(share).astype(np.int64)
-    rest = total - n - int(steps.sum())
-    steps[np.argsort(-(share - steps), kind="stable")[:rest]] += 1
-    return steps + 1
 
 
 class LawnmowerPlanner(_Executor):
@@ -332,7 +298,7 @@ class LawnmowerPlanner(_Executor):
         self.lane_spacing_cells = lane_spacing_cells
 
     def make_plan(self, env: Any) -> Plan:
-        scenario = _scenario_of(env)
+        scenario = env.scenario
         nx, ny, nz = scenario.grid_shape
         if not 0 <= self.depth_cell < nz:
             raise ConfigError(f"depth_cell = {self.depth_cell} is outside the grid's 0..{nz - 1}", "depth_cell")
@@ -375,7 +341,7 @@ class GreedyPlanner(_Executor):
 
     def make_plan(self, env: Any) -> Plan:
         where = reachable(env.tables)
-        covered, power = coverage_tables(_scenario_of(env), where.tables)
+        covered, power = coverage_tables(env.scenario, where.tables)
         # each node's best hover cell: the reachable covering cell with the most received power
         self._best_cell = np.where(covered.any(axis=0), np.argmax(np.where(covered, power, -1.0), axis=0), -1)
         return _with_reach(Plan([], status="online"), where)

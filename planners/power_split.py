@@ -875,14 +875,17 @@ def optimise_dwell_and_split(
 
 @dataclass(frozen=True, eq=False)
 class DwellSplitInputs:
-    """The program's inputs for a scenario and hover cells (:func:`from_scenario`).
+    """The program's inputs for a scenario and its hover points (:func:`from_scenario` for
+    grid cells, :func:`stop_inputs` for links already computed, e.g. at points of the
+    continuous world).
 
     ``optimise_dwell_and_split(**inputs.as_kwargs())`` solves it;
-    ``DwellSplitProblem(inputs.coverage_mask, ...)`` builds it for repeated solves.
+    ``DwellSplitProblem(inputs.coverage_mask, ...)`` builds it for repeated solves;
+    :func:`dwell_steps` solves it and rounds the dwells to whole steps.
     """
 
-    hover_cells: np.ndarray
-    """(K,) flat cell indices of the hover points."""
+    hover_cells: np.ndarray | None
+    """(K,) flat cell indices of the hover points (``None``: points that are not cells)."""
     snr_linear: np.ndarray
     """(K, N) mean link SNR, linear; 0 where not covered."""
     available_power_w: np.ndarray
@@ -966,19 +969,41 @@ def from_scenario(
     budget = link_budget(scenario, slant_distances_m(auv_m, layout.positions_m))
     snr = np.where(covered, db_to_linear(budget.snr_db), 0.0)
     p_av = np.where(covered, budget.available_power_w, 0.0)
-    data = layout.data_bits.copy() if data_bits is None else _array("data_bits", data_bits, (n,))
-    stored = layout.initial_energy_j if stored_energy_j is None else _array("stored_energy_j", stored_energy_j, (n,))
-    room = np.maximum(layout.capacity_j - stored, 0.0)
+    data = None if data_bits is None else _array("data_bits", data_bits, (n,))
+    stored = None if stored_energy_j is None else _array("stored_energy_j", stored_energy_j, (n,))
+    mission = scenario.episode_steps * scenario.step_duration_s if mission_time_s is None else mission_time_s
+    return stop_inputs(scenario, snr, p_av, mission_time_s=mission, data_bits=data, stored_energy_j=stored,
+                       energy_budget_j=energy_budget_j, hover_cells=cells.astype(np.int64))
+
+
+def stop_inputs(
+    scenario: Scenario,
+    snr_linear: np.ndarray,
+    available_power_w: np.ndarray,
+    *,
+    mission_time_s: float,
+    data_bits: np.ndarray | None = None,
+    stored_energy_j: np.ndarray | None = None,
+    energy_budget_j: float | None = None,
+    hover_cells: np.ndarray | None = None,
+) -> DwellSplitInputs:
+    """The program's inputs for hover points whose links are given: ``snr_linear`` and
+    ``available_power_w`` (K, N), zero where a node is not covered; the layout's data and
+    storage room (or ``data_bits`` still to deliver and ``stored_energy_j`` already stored);
+    the scenario's reward weight, bandwidth, harvester efficiency, references
+    (:func:`swiptopt.link.reward_references`) and AUV power while serving."""
+    layout = scenario.layout
+    data = layout.data_bits.copy() if data_bits is None else np.asarray(data_bits, dtype=float)
+    stored = layout.initial_energy_j if stored_energy_j is None else np.asarray(stored_energy_j, dtype=float)
     refs = reward_references(scenario)
     power = auv_power(scenario)
-    mission = scenario.episode_steps * scenario.step_duration_s if mission_time_s is None else mission_time_s
     return DwellSplitInputs(
-        hover_cells=cells.astype(np.int64),
-        snr_linear=snr,
-        available_power_w=p_av,
+        hover_cells=hover_cells,
+        snr_linear=snr_linear,
+        available_power_w=available_power_w,
         data_bits=data,
-        storage_room_j=room,
-        mission_time_s=_scalar("mission_time_s", mission),
+        storage_room_j=np.maximum(layout.capacity_j - stored, 0.0),
+        mission_time_s=_scalar("mission_time_s", mission_time_s),
         energy_budget_j=None if energy_budget_j is None else _scalar("energy_budget_j", energy_budget_j),
         dwell_power_w=power.hotel_w + scenario.station_keeping_power_w + power.projector_w,
         reward_weight=scenario.reward_weight,
@@ -987,3 +1012,34 @@ def from_scenario(
         data_ref_bits=refs.data_ref_bits,
         energy_ref_j=refs.energy_ref_j,
     )
+
+
+def whole_steps(wanted: ArrayLike, total: int) -> np.ndarray:
+    """Whole service steps per stop, at least one each, summing to ``total`` (largest
+    remainder): ``wanted`` (K,) the shares in steps, continuous."""
+    n = len(wanted)
+    if total <= n:
+        return np.ones(n, dtype=np.int64)
+    share = np.maximum(np.asarray(wanted, dtype=float), 0.0)
+    share = share / share.sum() * (total - n) if share.sum() > 0 else np.full(n, (total - n) / n)
+    steps = np.floor(share).astype(np.int64)
+    rest = total - n - int(steps.sum())
+    steps[np.argsort(-(share - steps), kind="stable")[:rest]] += 1
+    return steps + 1
+
+
+def dwell_steps(
+    inputs: DwellSplitInputs, step_s: float, service_steps: int, total_steps: int, *, split_ratio: float | None,
+) -> tuple[np.ndarray, PowerSplitResult]:
+    """Whole service steps per hover point (:func:`whole_steps`, summing to ``total_steps``)
+    from the program's dwells in steps of ``step_s``, at the simulator's fixed
+    ``split_ratio`` (``None``: the program chooses the splits too); ``service_steps`` shared
+    evenly when the solve fails. Returns the steps and the program's result (its status says
+    whether the solve succeeded)."""
+    result = optimise_dwell_and_split(**inputs.as_kwargs(), split_ratio=split_ratio)
+    k = len(inputs.snr_linear)
+    if result.dwell_s is not None:
+        wanted = np.asarray(result.dwell_s) / step_s
+    else:
+        wanted = np.full(k, service_steps / k)
+    return whole_steps(wanted, total_steps), result

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from planners.policies import KMeansTspPlanner, Plan, Stop, _integer_steps, _scenario_of
+from planners.policies import KMeansTspPlanner, Plan, Stop
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
 from swiptopt import fpmath
@@ -75,7 +75,7 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
     def make_plan(self, env: Any) -> Plan:
         if self.selection == "coverage" and self.dwell == "convex":
             return super().make_plan(env)
-        scenario = _scenario_of(env)
+        scenario = env.scenario
         model = step_model(env.tables)
         walks = Walks(model)
         best: tuple[float, list[int], list[int], int] | None = None
@@ -199,30 +199,13 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
     def _convex_extra(self, scenario: Any, order: list[int], arrived: list[bool], extra_steps: int) -> list[int]:
         """The old dwell: the convex program's split of the service time, in whole steps."""
         from planners.clustering import hover_link
-        from planners.power_split import optimise_dwell_and_split
-        from swiptopt.link import reward_references
+        from planners.power_split import dwell_steps, stop_inputs
 
         service_steps = extra_steps + sum(arrived)
         snr, p_av = hover_link(scenario, np.asarray(order), None)
-        refs = reward_references(scenario)
-        layout = scenario.layout
-        result = optimise_dwell_and_split(
-            snr_linear=snr,
-            available_power_w=p_av,
-            data_bits=layout.data_bits,
-            storage_room_j=layout.capacity_j - layout.initial_energy_j,
-            mission_time_s=max(service_steps, 1) * scenario.step_duration_s,
-            reward_weight=scenario.reward_weight,
-            bandwidth_hz=scenario.bandwidth_hz,
-            efficiency=scenario.harvest_efficiency,
-            data_ref_bits=refs.data_ref_bits,
-            energy_ref_j=refs.energy_ref_j,
-        )
-        if result.dwell_s is not None:
-            wanted = np.asarray(result.dwell_s) / scenario.step_duration_s
-        else:
-            wanted = np.full(len(order), service_steps / len(order))
-        steps = _integer_steps(wanted, max(service_steps, len(order)))
+        inputs = stop_inputs(scenario, snr, p_av, mission_time_s=max(service_steps, 1) * scenario.step_duration_s)
+        steps, _ = dwell_steps(inputs, scenario.step_duration_s, service_steps, max(service_steps, len(order)),
+                               split_ratio=None)
         extra = [int(s) - int(a) for s, a in zip(steps, arrived)]
         # keep the total: the program's steps count arrivals, which are already in the path
         surplus = sum(extra) - extra_steps

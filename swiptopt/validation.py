@@ -116,6 +116,28 @@ def check_value(
     return value
 
 
+@dataclass(frozen=True)
+class Param(Spec):
+    """A constructor argument declared once, on the class that takes it: its default and
+    what it may hold. A class lists its ``parameters`` (name -> Param); :func:`check_params`
+    checks its arguments against them, and the benchmark's registry reads the same
+    declarations for its settings, its listing and its validation."""
+
+    default: Any = None
+
+
+def check_params(params: Mapping[str, Param], values: Mapping[str, Any], owner: str = "") -> dict[str, Any]:
+    """``values`` checked against ``params`` (unknown names refused, naming the allowed
+    ones) with the defaults of those not given, normalised; a :class:`ConfigError` naming the
+    argument otherwise."""
+    for name in values:
+        if name not in params:
+            whose = f"{owner} " if owner else ""
+            raise ConfigError(f"unknown {whose}argument {name!r}{did_you_mean(name, params)}: allowed are "
+                              f"{', '.join(params)}", name)
+    return {name: check_value(name, values.get(name, param.default), param) for name, param in params.items()}
+
+
 def check_keys(where: str, mapping: Any, field: str | None = None, error: type[ConfigError] = ConfigError) -> dict:
     """``mapping`` as a dict whose keys are all strings; otherwise ``error`` naming ``where``."""
     if not isinstance(mapping, Mapping):
@@ -126,4 +148,4 @@ def check_keys(where: str, mapping: Any, field: str | None = None, error: type[C
     return dict(mapping)
 
 
-__all__ = ["KINDS", "Spec", "check_keys", "check_value"]
+__all__ = ["KINDS", "Param", "Spec", "check_keys", "check_params", "check_value"]

@@ -32,8 +32,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from planners.continuous import ARRIVAL_TOLERANCE_M, NO_PROGRESS_M, _integer, _leg_steps, _real, point_model
-from planners.paths3d import CRASHING_PLANNERS, NO_PYTHON_OBJECTIVE_PLANNERS, PLANNERS
+from planners.continuous import (
+    ARRIVAL_TOLERANCE_M,
+    MAX_SEED,
+    NO_PROGRESS_M,
+    LegPath,
+    OmplTourPlanner,
+    leg_steps,
+    point_model,
+)
 from planners.stops.base import (
     DWELLS,
     MASKED_ACTIONS,
@@ -48,6 +55,7 @@ from swiptopt import kernel as K
 from swiptopt.env import LAYOUT_CACHE_SIZE
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Param, check_value
 
 #: How the legs between sites are made (module docstring).
 LEGS = ("ompl", "straight")
@@ -76,14 +84,12 @@ class ContinuousStopSettings:
         object.__setattr__(self, "dwells", check_dwells(self.dwells))
         check_choice("legs", self.legs, LEGS)
         check_choice("masked_action", self.masked_action, MASKED_ACTIONS)
-        object.__setattr__(self, "clearance_m", _real("clearance_m", self.clearance_m, unit="m"))
-        object.__setattr__(self, "ompl_iterations", _integer("ompl_iterations", self.ompl_iterations, low=1))
-        object.__setattr__(self, "search_evaluations", _integer("search_evaluations", self.search_evaluations, low=0))
-        object.__setattr__(self, "planner_seed", _integer("planner_seed", self.planner_seed, low=0))
-        allowed = [p for p in PLANNERS if p not in CRASHING_PLANNERS and p not in NO_PYTHON_OBJECTIVE_PLANNERS]
-        if self.ompl_planner not in allowed:
-            raise ConfigError(f"ompl_planner = {self.ompl_planner!r} is not one of {', '.join(allowed)}",
-                              "ompl_planner")
+        # the tour planners' declarations of the settings they share with this env
+        declared = OmplTourPlanner.parameters
+        for name in ("clearance_m", "ompl_iterations", "ompl_planner", "search_evaluations"):
+            object.__setattr__(self, name, check_value(name, getattr(self, name), declared[name]))
+        seed = Param(kind="int", lo=0, hi=MAX_SEED)
+        object.__setattr__(self, "planner_seed", check_value("planner_seed", self.planner_seed, seed))
 
     def layout_settings(self) -> tuple:
         """The settings the stops layout depends on (not the dwells, not the masked actions)."""
@@ -160,20 +166,17 @@ class ContinuousStops:
 
 
 def _ompl_legs(scenario: Scenario, sites: np.ndarray, pairs: list[tuple[int, int]], clearance_m: float,
-               iterations: int, planner_name: str, seed: int) -> list[tuple[np.ndarray, str]]:
+               iterations: int, planner_name: str, seed: int) -> list[LegPath]:
     """The OMPL tour's legs between the given pairs of sites, in order; OMPL's seed is
     ``seed + 1`` (as :class:`planners.continuous.OmplTourPlanner` seeds it), which makes the
     legs reproducible only in a process that has planned nothing before
     (:func:`_plan_in_fresh_process`)."""
-    from planners.continuous import OmplTourPlanner
-
     planner = OmplTourPlanner(seed, clearance_m=clearance_m, ompl_iterations=iterations, ompl_planner=planner_name)
-    planner._ompl_calls = []
-    return [planner._leg_between(None, scenario, sites[i], sites[j]) for i, j in pairs]
+    return [planner.leg_between(scenario, sites[i], sites[j]) for i, j in pairs]
 
 
 def _plan_in_fresh_process(scenario: Scenario, sites: np.ndarray, pairs: list[tuple[int, int]], clearance_m: float,
-                           iterations: int, planner_name: str, seed: int) -> list[tuple[np.ndarray, str]]:
+                           iterations: int, planner_name: str, seed: int) -> list[LegPath]:
     """:func:`_ompl_legs` in a fresh Python process (OMPL's first plan there), talking JSON over
     its standard input and output (floats round-trip exactly through JSON's shortest repr)."""
     import json
@@ -196,7 +199,7 @@ def _plan_in_fresh_process(scenario: Scenario, sites: np.ndarray, pairs: list[tu
             f"planning the legs in a fresh process failed (exit {run.returncode}):\n{run.stderr[-2000:]}"
         )
     legs = json.loads(run.stdout)
-    return [(np.array(w, dtype=float).reshape(-1, 3), str(source)) for w, source in legs]
+    return [LegPath(np.array(w, dtype=float).reshape(-1, 3), str(source), bool(blocked)) for w, source, blocked in legs]
 
 
 def _serve_legs() -> None:
@@ -208,7 +211,7 @@ def _serve_legs() -> None:
     legs = _ompl_legs(Scenario.from_dict(request["scenario"]), np.array(request["sites"], dtype=float),
                       [tuple(p) for p in request["pairs"]], request["clearance_m"], request["iterations"],
                       request["planner"], request["seed"])
-    json.dump([[np.asarray(w, dtype=float).tolist(), source] for w, source in legs], sys.stdout)
+    json.dump([[np.asarray(leg.waypoints_m, dtype=float).tolist(), leg.source, leg.blocked] for leg in legs], sys.stdout)
 
 
 def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousStopSettings) -> ContinuousStops:
@@ -231,7 +234,7 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
         if not coverable[i]:
             why[i] = f"no free position covers node {i}"
         else:
-            point = searcher._search_hover_point(world, scenario, np.array([i]))
+            point = searcher.search_hover_point(world, scenario, np.array([i]))
             nodes = coverage_at(world, point)[0]
             if i in nodes:
                 points[i], valid[i] = point, True
@@ -250,10 +253,10 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
         for j in range(i + 1, n + 1):
             if (i == 0 or valid[i - 1]) and valid[j - 1]:
                 wanted.append((i, j))
-    legs: dict[tuple[int, int], tuple[np.ndarray, str]] = {}
+    legs: dict[tuple[int, int], LegPath] = {}
     if settings.legs == "straight":
         for i, j in wanted:
-            legs[i, j] = (np.stack([sites[i], sites[j]]), "straight (obstacles ignored)")
+            legs[i, j] = LegPath(np.stack([sites[i], sites[j]]), "straight (obstacles ignored)")
     else:
         a = np.array([sites[i] for i, _ in wanted]).reshape(-1, 3)
         b = np.array([sites[j] for _, j in wanted]).reshape(-1, 3)
@@ -261,7 +264,7 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
         blocked = [pair for pair, ok in zip(wanted, free) if not ok]
         for pair, ok in zip(wanted, free):
             if ok:
-                legs[pair] = (np.stack([sites[pair[0]], sites[pair[1]]]), "straight")
+                legs[pair] = LegPath(np.stack([sites[pair[0]], sites[pair[1]]]), "straight")
         if blocked:
             planned = _plan_in_fresh_process(scenario, sites, blocked, settings.clearance_m, settings.ompl_iterations,
                                              settings.ompl_planner, settings.planner_seed)
@@ -275,14 +278,13 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
         routes[c + 1, c] = sites[c + 1 : c + 2].copy()
         sources[c + 1, c] = "here"
         route_steps[c + 1, c] = 0
-    for (i, j), (waypoints, source) in legs.items():
-        usable = not source.startswith("straight (OMPL")
-        for site, cand, path in ((i, j - 1, waypoints), (j, i - 1, waypoints[::-1].copy())):
+    for (i, j), leg in legs.items():
+        for site, cand, path in ((i, j - 1, leg.waypoints_m), (j, i - 1, leg.waypoints_m[::-1].copy())):
             if cand < 0:
                 continue  # no leg leads to the start
             routes[site, cand] = path
-            sources[site, cand] = source
-            route_steps[site, cand] = _leg_steps(path, max_step) if usable else -1
+            sources[site, cand] = leg.source
+            route_steps[site, cand] = -1 if leg.blocked else leg_steps(path, max_step)
 
     model = point_model(world, points)
     keep = valid[model.cell_of_pair()]

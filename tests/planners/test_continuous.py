@@ -22,9 +22,9 @@ from planners.continuous import (  # noqa: E402
     Leg,
     OmplTourPlanner,
     StraightLinePlanner,
-    _Follower,
-    _leg_steps,
-    _PointService,
+    Executor,
+    PointService,
+    leg_steps,
     point_model,
     trajectory_return,
 )
@@ -65,7 +65,7 @@ def _plan_record(planner) -> dict:  # type: ignore[no-untyped-def]
 def _executor_record(planner) -> dict:  # type: ignore[no-untyped-def]
     """What the executor did in the last episode: stops given up, skipped, dwells cut,
     lingering, and whether it reached the end phase."""
-    f = planner._follower
+    f = planner._executor
     return {"given_up": list(f.given_up), "skipped": list(f.skipped), "cut": list(f.cut),
             "lingered": f.lingered_steps, "end_phase": f.end_phase}
 
@@ -235,7 +235,7 @@ def _hand_plan(env, points_m, stops, dwell) -> ContinuousPlan:  # type: ignore[n
         for j in range(1, len(sites)):
             if i != j:
                 way = np.stack([sites[i], sites[j]])
-                routes[i, j] = Leg(way, path_energy_j(way, env.scenario), _leg_steps(way, world.max_step_m), "straight")
+                routes[i, j] = Leg(way, path_energy_j(way, env.scenario), leg_steps(way, world.max_step_m), "straight")
     legs = tuple(routes[a, b] for a, b in zip((0,) + tuple(stops[:-1]), stops))
     return ContinuousPlan(
         k=len(points_m), hover_points_m=sites[list(stops)], groups=(), legs=legs,
@@ -269,7 +269,7 @@ def test_the_executor_skips_served_stops_cuts_served_dwells_and_ends_where_it_st
     planned.begin_episode(env)
     p, q = planned.plan_.hover_points_m[:2]
     plan = _hand_plan(env, np.stack([p, p + (0.01, 0.0, 0.0), q]), (1, 2), (40, 5))
-    follower = _Follower(plan, env.world)
+    follower = Executor(plan, env.world)
     env_return, path = _run(env, follower)
     assert follower.cut == [0] and follower.skipped == [1] and follower.end_phase
     assert np.linalg.norm(path[-1] - q) < ARRIVAL_TOLERANCE_M  # it ended at site 3
@@ -277,13 +277,13 @@ def test_the_executor_skips_served_stops_cuts_served_dwells_and_ends_where_it_st
     assert 1 <= at_p.sum() < 41  # arrived, left before the planned 40 hover steps
 
     planner = StraightLinePlanner(0, adaptive=True)
-    planner._service = _PointService(env.world)
+    planner._service = PointService(env.world)
     scored = planner._scored(env.world, plan)
     assert scored.model_return == pytest.approx(env_return, rel=1e-9)
     np.testing.assert_allclose(scored.positions_m, path, atol=1e-9)
     assert trajectory_return(env.world, scored.positions_m, scored.actions) == pytest.approx(scored.model_return, rel=1e-12)
 
-    fixed = _Follower(plan, env.world, adaptive=False)  # the plan as planned: no reactions
+    fixed = Executor(plan, env.world, adaptive=False)  # the plan as planned: no reactions
     fixed_return, fixed_path = _run(env, fixed)
     assert fixed.cut == fixed.skipped == [] and not fixed.end_phase
     assert np.linalg.norm(fixed_path[-1] - plan.sites_m[2]) < ARRIVAL_TOLERANCE_M
@@ -296,7 +296,7 @@ def test_a_blocked_straight_leg_is_given_up_without_entering_the_pier():
     env = AuvSwiptContinuousEnv(preset="harbour", layout_seed=0, start_cell=(3, 7, 2))  # (35, 75, 25)
     north = np.array([35.0, 125.0, 25.0])  # across the pier
     east = np.array([85.0, 75.0, 25.0])
-    follower = _Follower(_hand_plan(env, np.stack([north, east]), (1, 2), (2, 3)), env.world, adaptive=False)
+    follower = Executor(_hand_plan(env, np.stack([north, east]), (1, 2), (2, 3)), env.world, adaptive=False)
     env.reset(seed=0)
     for _ in range(12):
         state = env.state

@@ -5,7 +5,8 @@ import swiptopt
 from planners.bounds import exact_optimum, upper_bound
 from planners.clustering import coverage_tables, kmeans_hover_points
 from planners.grid import bfs_distances, path_actions
-from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner, _integer_steps
+from planners.policies import GreedyPlanner, KMeansTspPlanner, LawnmowerPlanner
+from planners.power_split import whole_steps
 from rl import RandomAgent
 from swiptopt import Box, Scenario, evaluate
 from swiptopt import kernel as K
@@ -112,10 +113,10 @@ def test_kmeans_tsp_with_ompl_tour_costs():
         KMeansTspPlanner(tour_costs="manhattan")
 
 
-def test_integer_steps():
-    steps = _integer_steps(np.array([0.2, 3.7, 1.1]), 9)
+def testwhole_steps():
+    steps = whole_steps(np.array([0.2, 3.7, 1.1]), 9)
     assert steps.sum() == 9 and steps.min() >= 1
-    assert list(_integer_steps(np.array([1.0, 1.0]), 1)) == [1, 1]
+    assert list(whole_steps(np.array([1.0, 1.0]), 1)) == [1, 1]
 
 
 def test_predict_without_begin_episode_is_a_clear_error():
