@@ -25,7 +25,12 @@ of two ways; both name a *factory*, a function of no arguments that returns an
   (``[project.entry-points."swiptopt.algorithms"] a2c = "my_algorithms:a2c"``): the
   algorithm is then known by the entry point's name everywhere;
 - ``[plugins] a2c = "my_algorithms:a2c"`` in an experiment file, for that experiment (the
-  module must be importable: on ``PYTHONPATH`` or installed).
+  module must be importable: on ``PYTHONPATH`` or installed), honoured only with the
+  user's consent (``--allow-plugins``).
+
+A plugin is code run in swiptopt's processes: :func:`load_plugin` imports its module and
+calls only a plain function that module defines (never a builtin such as ``os.abort``), and
+turns whatever the plugin raises into one line. docs/plugins.md says when plugins load.
 
 Each algorithm runs in the worlds it declares (``worlds``: the paper's ``"grid"``, the
 ``"continuous"`` world, or both; :mod:`swiptopt.worlds`): the grid's agents and planners
@@ -37,14 +42,17 @@ commands) in both. An experiment refuses an algorithm outside its world.
 Each algorithm acts on one observation of the environment (``observation``: ``"tabular"``
 for the paper's agents, ``"vector"`` for deep RL; planners read the environment itself). An
 experiment may say ``observation = ...`` among an algorithm's settings; any other value
-than the algorithm's own is refused, naming it.
+than the algorithm's own is refused, naming it. The continuous world has one observation,
+``"vector"``: there every other value is refused.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any, Callable
 
 from planners.bounds import MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP
@@ -162,6 +170,12 @@ class Algorithm:
     scenario of the experiment before any task runs; raises ConfigError): sizes."""
     worlds: tuple[str, ...] = (GRID,)
     uses_ompl: Callable[[dict[str, Any]], bool] | None = None
+    trained_model: Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]] | None = None
+    """For an algorithm whose tasks keep their models in the models directory
+    (:func:`rl.deep.train_or_load_deep`): the training run behind a task's model, as
+    (:class:`rl.deep.DeepConfig`, the scenario that names the model), from the task's
+    resolved settings, seed and context. The runner checks the models' places with it before
+    any task runs."""
 
     @property
     def defaults(self) -> dict[str, Any]:
@@ -393,37 +407,96 @@ def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
             if k not in _NOT_SB3 and v is not None}
 
 
+def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int,
+              context: BuildContext) -> tuple[Any, int, dict[str, Any]]:
+    """The training run behind a deep-RL task: the scenario it trains on, its seed and the
+    keyword arguments of :func:`rl.deep.train_deep` (the training layouts, the world, the
+    SB3 arguments, the copies, the environment)."""
+    scenario = context.scenario
+    layouts = None
+    if settings[TRAINING] == ACROSS_LAYOUTS:
+        if not context.training_layouts:
+            raise ConfigError("training = 'across_layouts' needs the experiment's training_layouts",
+                              "training_layouts")
+        layouts = tuple(context.training_layouts)
+        scenario = scenario.replace(layout_seed=layouts[0])
+        seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
+    env_id, env_kwargs = None, {}
+    if stops:
+        from planners.stops import STOP_ENV_IDS
+
+        env_id = STOP_ENV_IDS[context.world]
+        env_kwargs = {key: settings[key] for key in _STOP_ENV_SETTINGS[context.world]}
+    arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
+                     layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"], env_id=env_id,
+                     env_kwargs=env_kwargs)
+    return scenario, seed, arguments
+
+
+def _deep_config(sb3: str, settings: dict[str, Any], seed: int, arguments: dict[str, Any]) -> Any:
+    """The :class:`rl.deep.DeepConfig` of a training run (:func:`_deep_run`), as
+    :func:`rl.deep.train_or_load_deep` makes it: its hash names the model's file."""
+    from rl.deep import DeepConfig
+
+    return DeepConfig(sb3, settings["timesteps"], seed, arguments["hyperparams"], arguments["policy_kwargs"],
+                      arguments["layout_seeds"], arguments["world"], arguments["n_envs"], arguments["env_id"],
+                      arguments["env_kwargs"])
+
+
+def _deep_model(sb3: str, stops: bool = False) -> Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]]:
+    """An algorithm's ``trained_model``: the configuration and scenario of a task's model."""
+
+    def model(settings: dict[str, Any], seed: int, context: BuildContext) -> tuple[Any, Any]:
+        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context)
+        return _deep_config(sb3, settings, seed, arguments), scenario
+
+    return model
+
+
+def _load_unlocked(directories: list[str], config: Any, scenario: Any) -> Any:
+    """The trusted model of ``config`` in ``directories`` (each vouched for by its manifest),
+    loaded without taking its lock, as :func:`rl.deep.train_or_load_deep` loads it; for a
+    models directory this process cannot write (where no lock can be made, and no model
+    trained). A missing model is a :class:`ConfigError`."""
+    import numpy as np
+
+    from rl.deep import DeepResult, deep_config_hash, file_sha256, find_model, load_weights, model_path
+
+    found, note = find_model(directories, config, scenario)
+    if found is None:
+        name = model_path(directories[0], config, scenario).name
+        raise ConfigError(f"the models directory {directories[0]} is not writable and holds no trusted {name}: "
+                          "make it writable to train it", "models")
+    key = deep_config_hash(config, scenario)
+    model = load_weights(found, config, scenario, config_hash=key)
+    return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found, sha256=file_sha256(found),
+                      note=note)
+
+
+def _writable(directory: str) -> bool:
+    """Whether this process can make files in ``directory`` (or create it, when it is missing)."""
+    path = Path(directory)
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return os.access(path, os.W_OK | os.X_OK)
+
+
 def _deep(sb3: str, stops: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path); with
     ``stops``, on the world's stop-choice environment (:mod:`planners.stops`), the trained
     model then played on the kernel env by :class:`planners.stops.StopChoicePolicy`."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-        from rl.deep import DeepConfig, checkpoint_exact, train_deep, train_or_load_deep
+        from rl.deep import checkpoint_exact, train_deep, train_or_load_deep
 
-        scenario = context.scenario
-        layouts = None
-        if settings[TRAINING] == ACROSS_LAYOUTS:
-            if not context.training_layouts:
-                raise ConfigError("training = 'across_layouts' needs the experiment's training_layouts",
-                                  "training_layouts")
-            layouts = tuple(context.training_layouts)
-            scenario = scenario.replace(layout_seed=layouts[0])
-            seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
-        env_id, env_kwargs = None, {}
-        if stops:
-            from planners.stops import STOP_ENV_IDS
-
-            env_id = STOP_ENV_IDS[context.world]
-            env_kwargs = {key: settings[key] for key in _STOP_ENV_SETTINGS[context.world]}
-        arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
-                         layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"], env_id=env_id,
-                         env_kwargs=env_kwargs)
+        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context)
         if context.models_dir is None:
             result = train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
+        elif not _writable(context.models_dir):
+            config = _deep_config(sb3, settings, seed, arguments)
+            result = _load_unlocked([context.models_dir, *context.pretrained], config, scenario)
         else:
-            config = DeepConfig(sb3, settings["timesteps"], seed, arguments["hyperparams"], arguments["policy_kwargs"],
-                                layouts, context.world, settings["n_envs"], env_id, env_kwargs)
+            config = _deep_config(sb3, settings, seed, arguments)
             checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps)]
             result = train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
                                         checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
@@ -432,7 +505,7 @@ def _deep(sb3: str, stops: bool = False) -> Callable[[Any, dict[str, Any], int, 
         from planners.stops import StopChoicePolicy, make_stop_env
 
         return _StopPolicy(result, StopChoicePolicy.from_env(result.model, make_stop_env(
-            context.world, context.scenario, **env_kwargs)))
+            context.world, context.scenario, **arguments["env_kwargs"])))
 
     return build
 
@@ -484,7 +557,7 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
     settings = {**_DEEP_COMMON, **(settings or {})}
     rollout = "n_steps" in settings
     return Algorithm(name or label.lower(), label, "rl", settings, _deep(sb3), _deep_record, observation="vector",
-                     modules=("torch",), trains_model=True, worlds=worlds,
+                     modules=("torch",), trains_model=True, worlds=worlds, trained_model=_deep_model(sb3),
                      check_scenario=_check_deep_sizes(name or label.lower(), rollout) if rollout or "buffer_size" in settings else None)
 
 
@@ -565,7 +638,7 @@ ALGORITHMS: dict[str, Algorithm] = {
         sb3_algorithm("dqn", "DQN", _DQN, name="dqn"),
         sb3_algorithm("sac", "SAC", _SAC, name="sac", worlds=(CONTINUOUS,)),
         Algorithm("stop_ppo", "stop-choosing PPO", "rl", _STOP_PPO, _deep("maskable_ppo", stops=True), _deep_record,
-                  modules=("torch",), trains_model=True, worlds=WORLDS,
+                  modules=("torch",), trains_model=True, worlds=WORLDS, trained_model=_deep_model("maskable_ppo", True),
                   check_scenario=_check_deep_sizes("stop_ppo", True, candidates=True)),
         Algorithm(
             "kmeans_tsp",
@@ -681,11 +754,41 @@ def _check_plugin(name: str, source: str, made: Any, where: str) -> Algorithm:
     return replace(made, name=name)
 
 
+def _said(exc: BaseException) -> str:
+    """What an exception of a plugin's code says, on one line: ``Type: message``."""
+    message = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
+
+
+def _is_factory(obj: Any, module_name: str) -> bool:
+    """Whether ``obj`` may be called as a plugin's factory: a plain Python function defined
+    in the module the source names (not a builtin such as ``os.abort`` or ``sys.exit``, not
+    a class, not a function another module defines), callable without arguments. Decided
+    without calling it."""
+    import inspect
+
+    if not inspect.isfunction(obj) or getattr(obj, "__module__", None) != module_name:
+        return False
+    try:
+        inspect.signature(obj).bind()
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def load_plugin(name: str, source: Any, where: str = "") -> Algorithm:
     """Register the algorithm made by the factory ``source`` (``"package.module:function"``)
     under ``name`` and return it; anything wrong (a name taken by a built-in algorithm, a
     module that does not import, a missing factory, one that fails or returns something else
-    than an :class:`Algorithm`) is a :class:`ConfigError` naming ``where``."""
+    than an :class:`Algorithm`) is a :class:`ConfigError` naming ``where``.
+
+    This imports the module and calls the factory: the plugin's code runs in this process.
+    Only a plain function defined in that module and taking no arguments is called (or an
+    :class:`Algorithm` it holds is taken); anything else (``os:abort``, ``sys:exit``, a
+    class) is refused without being called. Whatever the plugin's code raises, ``SystemExit``
+    and ``KeyboardInterrupt`` included, becomes a :class:`ConfigError`. Callers decide
+    whether the source may be loaded at all (an experiment file's ``[plugins]`` only with
+    the user's consent: :meth:`~swiptopt.benchmark.experiment.Experiment.from_dict`)."""
     import importlib
 
     where = where or f"plugins.{name}"
@@ -700,26 +803,36 @@ def load_plugin(name: str, source: Any, where: str = "") -> Algorithm:
     if known is not None and known[0] == source:
         return known[1]
     module_name, _, attribute = source.partition(":")
+    # the plugin's code may raise anything, SystemExit and KeyboardInterrupt included: all of
+    # it is bad input, reported in one line
     try:
         obj: Any = importlib.import_module(module_name)
-    except Exception as exc:  # a plugin's import can fail in any way; all of them are bad input
-        raise ConfigError(f"{where} = {source!r}: cannot import {module_name!r} ({type(exc).__name__}: {exc})",
-                          name) from None
+    except BaseException as exc:
+        raise ConfigError(f"{where} = {source!r}: cannot import {module_name!r} ({_said(exc)})", name) from None
     try:
         for part in attribute.split("."):
             obj = getattr(obj, part)
     except AttributeError:
         raise ConfigError(f"{where} = {source!r}: module {module_name!r} has no {attribute!r}", name) from None
+    except BaseException as exc:
+        raise ConfigError(f"{where} = {source!r}: looking up {attribute!r} failed ({_said(exc)})", name) from None
     if isinstance(obj, Algorithm):
         made = obj
-    elif callable(obj):
+    elif _is_factory(obj, module_name):
         try:
             made = obj()
-        except Exception as exc:  # the factory is the plugin's code: report it in one line
-            raise ConfigError(f"{where} = {source!r}: the factory failed ({type(exc).__name__}: {exc})", name) from None
+        except BaseException as exc:
+            raise ConfigError(f"{where} = {source!r}: the factory failed ({_said(exc)})", name) from None
     else:
-        raise ConfigError(f"{where} = {source!r} is neither a factory nor an Algorithm", name)
-    algorithm = _check_plugin(name, source, made, where)
+        raise ConfigError(f"{where} = {source!r} is not a factory: a function of no arguments defined in "
+                          f"{module_name!r}, or an Algorithm, is required", name)
+    try:
+        algorithm = _check_plugin(name, source, made, where)
+    except ConfigError:
+        raise
+    except BaseException as exc:  # an Algorithm subclass's own code
+        raise ConfigError(f"{where} = {source!r}: checking what the factory returned failed ({_said(exc)})",
+                          name) from None
     _PLUGINS[name] = (source, algorithm)
     return algorithm
 
@@ -767,18 +880,33 @@ def _where(name: str, key: str) -> str:
     return f"algorithms.{name}.{key}"
 
 
-def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+def _plugin_code(name: str, what: str, call: Callable[..., Any], *args: Any) -> Any:
+    """``call(*args)``, code of algorithm ``name``: a built-in algorithm's as it is (an
+    exception other than a :class:`ConfigError` is a bug there), a plugin's with whatever it
+    raises (``SystemExit`` included) turned into a one-line :class:`ConfigError`."""
+    if name in ALGORITHMS:
+        return call(*args)
+    try:
+        return call(*args)
+    except ConfigError:
+        raise
+    except BaseException as exc:
+        raise ConfigError(f"algorithms.{name}: its {what} failed ({_said(exc)})", name) from None
+
+
+def resolve_settings(name: str, settings: dict[str, Any], world: str = GRID) -> dict[str, Any]:
     """The algorithm's defaults updated with ``settings``, each value checked against the
     algorithm's schema and normalised; an unknown algorithm, key or value is a
     :class:`ConfigError` naming the experiment's key and what is allowed.
 
-    ``observation``, where given, must be the algorithm's own and is left out of the result
-    (it is the algorithm's, not a choice)."""
+    ``observation``, where given, must be the one the algorithm acts on in ``world`` (the
+    continuous world has only ``"vector"``) and is left out of the result (it is the
+    algorithm's, not a choice)."""
     algorithm = get_algorithm(name)
     schema = algorithm.settings
     settings = check_keys(f"algorithms.{name}", settings, name)
     if "observation" in settings and "observation" not in schema:
-        _check_observation(algorithm, settings.pop("observation"))
+        _check_observation(algorithm, settings.pop("observation"), world)
     unknown = sorted(set(settings) - set(schema))
     if unknown:
         raise ConfigError(
@@ -794,12 +922,21 @@ def resolve_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
             note = training_log_note(out[key]) if spec.limit == "max_training_episodes" else ""
             check_size(spec.limit, out[key], _where(name, key), key, note=note)
     if algorithm.check is not None:
-        algorithm.check(out)
+        _plugin_code(name, "settings check", algorithm.check, out)
     return out
 
 
-def _check_observation(algorithm: Algorithm, value: Any) -> None:
+#: The one observation of the continuous world (every algorithm acts on it there).
+CONTINUOUS_OBSERVATION = "vector"
+
+
+def _check_observation(algorithm: Algorithm, value: Any, world: str = GRID) -> None:
     where = _where(algorithm.name, "observation")
+    if world == CONTINUOUS:
+        if value != CONTINUOUS_OBSERVATION:
+            raise ConfigError(f"{where} = {value!r} is not allowed: the continuous world has one observation, "
+                              f"{CONTINUOUS_OBSERVATION!r}", "observation")
+        return
     if algorithm.observation is None:
         if value not in OBSERVATIONS:
             raise ConfigError(f"{where} = {value!r} is not allowed: must be one of "
@@ -825,12 +962,12 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
     """
     algorithm = get_algorithm(name)
     if algorithm.check_scenario is not None:
-        algorithm.check_scenario(settings, scenario)
+        _plugin_code(name, "scenario check", algorithm.check_scenario, settings, scenario)
     for key, spec in algorithm.settings.items():
         value = settings.get(key)
         if spec.hi_of is None or value is None:
             continue
-        hi = spec.hi_of(scenario)
+        hi = _plugin_code(name, f"upper end of {key!r}", spec.hi_of, scenario)
         if not spec.in_range(value, hi):
             raise ConfigError(
                 f"{_where(name, key)} = {value!r} is out of range{where}: must be {spec.allowed(hi)} "
@@ -853,10 +990,10 @@ def check_world_of(name: str, world: str) -> None:
     )
 
 
-def quick_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+def quick_settings(name: str, settings: dict[str, Any], world: str = GRID) -> dict[str, Any]:
     """``settings`` shrunk for a smoke test (``--quick``): each setting with a ``quick`` value
-    capped at it (numbers) or replaced by it (anything else)."""
-    resolved = resolve_settings(name, settings)
+    capped at it (numbers) or replaced by it (anything else). ``world``: the experiment's."""
+    resolved = resolve_settings(name, settings, world)
     out = dict(settings)
     for key, spec in get_algorithm(name).settings.items():
         value = resolved[key]

@@ -189,6 +189,22 @@ PLUGIN = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.parametrize("name, settings", [
+    ("random", {}), ("random", {"train_episodes": 10}), ("ppo", {}), ("ompl_tour", {}), ("straight_line", {}),
+])
+def test_the_continuous_world_has_one_observation(name, settings):
+    """Every algorithm acts on the vector observation there: another is refused, naming it."""
+    fields = dict(name="obs", scenario={"preset": "harbour"}, world="continuous")
+    with pytest.raises(ConfigError) as info:
+        Experiment(**fields, algorithms={name: {**settings, "observation": "tabular"}})
+    message = str(info.value)
+    assert f"algorithms.{name}.observation = 'tabular'" in message and "'vector'" in message
+    assert info.value.field == "observation" and "\n" not in message
+    vector = Experiment(**fields, algorithms={name: {**settings, "observation": "vector"}})
+    assert vector.tasks() == Experiment(**fields, algorithms={name: settings}).tasks()
+    assert vector.quick().tasks() == Experiment(**fields, algorithms={name: settings}).quick().tasks()
+
+
 def test_a_plugin_declares_its_worlds(tmp_path, monkeypatch):
     (tmp_path / "swiptopt_test_world_plugin.py").write_text(PLUGIN, encoding="utf-8")
     monkeypatch.syspath_prepend(str(tmp_path))
