@@ -71,7 +71,15 @@ existed; a continuous task's key includes its world.
 
 Plugins: ``[plugins] a2c = "my_module:factory"`` registers an algorithm from outside the
 project for this experiment (:mod:`swiptopt.benchmark.algorithms`); ``[algorithms.a2c]``
-then runs it.
+then runs it. Loading one imports the module and calls the factory, so a file's
+``[plugins]`` is honoured only with the user's consent (``allow_plugins=True``: the CLI's
+``--allow-plugins``); without it the file is refused before anything is imported. An
+experiment built in Python (``Experiment(..., plugins=...)``) loads its plugins.
+
+Stored experiments: a run records its configuration (:meth:`Experiment.to_dict`) and
+:meth:`Experiment.record` (the order of its algorithms, sweep keys and budgets, and the
+resolved settings of every algorithm that is not built in). :meth:`Experiment.from_stored`
+rebuilds it from those alone: reading a store imports and calls nothing it names.
 """
 
 from __future__ import annotations
@@ -88,6 +96,7 @@ from typing import Any
 
 from swiptopt.benchmark.algorithms import (
     ACROSS_LAYOUTS,
+    ALGORITHMS,
     PER_LAYOUT as PER_LAYOUT_TRAINING,
     EXPANSION_SETTINGS,
     TRAINING,
@@ -207,9 +216,17 @@ class Experiment:
     """The world every task runs in (:mod:`swiptopt.worlds`): ``"grid"`` or ``"continuous"``."""
     budgets: dict[str, list[int]] = field(default_factory=dict)
     """Learning curves: algorithm -> the ``timesteps`` it runs at, a row each."""
+    recorded_settings: dict[str, dict[str, Any]] = field(default_factory=dict, compare=False, repr=False)
+    """Algorithms taken as a results store recorded them (:meth:`from_stored`), never looked
+    up, imported or called: name -> ``{"settings": resolved settings, "sweep": {setting:
+    its swept values, normalised}}`` (:meth:`record`). Not part of :meth:`to_dict`."""
 
     def __post_init__(self) -> None:
         _check_name(self.name)
+        for name, entry in self.recorded_settings.items():
+            if not _is_recorded_entry(entry):
+                raise ConfigError(f"recorded settings of {name!r} must be {{'settings': {{...}}, 'sweep': {{...}}}}",
+                                  "recorded_settings")
         object.__setattr__(self, "world", check_world(self.world))
         for key in ("description", "baseline"):
             if not isinstance(getattr(self, key), str):
@@ -227,9 +244,6 @@ class Experiment:
         if "world" in scenario:
             _misplaced_world("scenario.world")
         plugins = check_keys("[plugins]", self.plugins, "plugins")
-        for name, source in plugins.items():
-            load_plugin(name, source)
-        object.__setattr__(self, "plugins", plugins)
         algorithms = check_keys("[algorithms]", self.algorithms, "algorithms")
         if not algorithms:
             raise ConfigError("an experiment needs at least one algorithm in [algorithms]", "algorithms")
@@ -237,12 +251,17 @@ class Experiment:
         if unused:
             raise ConfigError(f"plugins.{unused[0]} is registered but not run: add [algorithms.{unused[0]}] or remove it",
                               "plugins")
+        for name, source in plugins.items():
+            if name not in self.recorded_settings:
+                load_plugin(name, source)
+        object.__setattr__(self, "plugins", plugins)
         for name, settings in algorithms.items():
             if isinstance(settings, dict) and "world" in settings:
                 _misplaced_world(f"algorithms.{name}.world")
-        resolved = {name: resolve_settings(name, settings) for name, settings in algorithms.items()}
+        resolved = {name: self._resolve(name, settings) for name, settings in algorithms.items()}
         for name in algorithms:
-            check_world_of(name, self.world)
+            if name not in self.recorded_settings:
+                check_world_of(name, self.world)
         self._check_training_layouts(resolved)
         self._check_budgets()
         if self.baseline and self.baseline not in algorithms:
@@ -272,7 +291,8 @@ class Experiment:
             built = self.scenario_for(point, self.layout_seeds()[0])
             where = f" at sweep point {point}" if point else ""
             for name in resolved:
-                check_settings_for(name, self.settings_at(name, point), built, where)
+                if name not in self.recorded_settings:
+                    check_settings_for(name, self.settings_at(name, point), built, where)
             fingerprint = json.dumps([built.to_dict(), self._split(point)[1]], sort_keys=True)
             if fingerprint in seen:
                 key, i, j = next((k, i, j) for k, i, j in zip(keys, seen[fingerprint], index) if i != j)
@@ -294,7 +314,7 @@ class Experiment:
                     "training_layouts",
                 )
             return
-        if not across:
+        if not across and not self.recorded_settings:
             raise ConfigError(
                 f"training_layouts is set but no algorithm trains across layouts: set training = {ACROSS_LAYOUTS!r} "
                 "on a deep-RL algorithm, or remove training_layouts",
@@ -322,15 +342,18 @@ class Experiment:
             if name not in self.algorithms:
                 raise ConfigError(f"budgets.{name}: {name!r} is not one of the experiment's algorithms "
                                   f"({', '.join(self.algorithms)})", "budgets")
-            schema = get_algorithm(name, self.plugins.get(name, "")).settings
-            if BUDGET_SETTING not in schema:
-                raise ConfigError(f"budgets.{name}: {name} has no {BUDGET_SETTING!r} setting to run at budgets "
-                                  "(deep-RL algorithms have)", "budgets")
+            if name in self.recorded_settings:  # checked against the algorithm's own when it ran
+                spec = Spec(kind="int", lo=1)
+            else:
+                schema = get_algorithm(name, self.plugins.get(name, "")).settings
+                if BUDGET_SETTING not in schema:
+                    raise ConfigError(f"budgets.{name}: {name} has no {BUDGET_SETTING!r} setting to run at budgets "
+                                      "(deep-RL algorithms have)", "budgets")
+                spec = schema[BUDGET_SETTING]
             if not isinstance(values, list) or not 1 <= len(values) <= MAX_BUDGETS:
                 raise ConfigError(f"budgets.{name} = {values!r} must be a list of 1 to {MAX_BUDGETS} step counts",
                                   "budgets")
-            checked = [check_setting(f"budgets.{name}[{i}]", v, schema[BUDGET_SETTING], "budgets")
-                       for i, v in enumerate(values)]
+            checked = [check_setting(f"budgets.{name}[{i}]", v, spec, "budgets") for i, v in enumerate(values)]
             if len(set(checked)) < len(checked) or checked != sorted(checked):
                 raise ConfigError(f"budgets.{name} = {values!r} must list distinct step counts in increasing order",
                                   "budgets")
@@ -379,8 +402,10 @@ class Experiment:
                 raise ConfigError(f"sweep.{key} must be a non-empty list of values", key)
             for value in values if key in settings else ():
                 for name in settings[key]:
+                    if name in self.recorded_settings:
+                        continue
                     try:
-                        resolve_settings(name, {**self.algorithms[name], key: value})
+                        resolve_settings(name, {**self.algorithms[name], key: value}, self.world)
                     except ConfigError as exc:
                         raise ConfigError(f"sweep.{key} = {value!r} for {name}: {exc}", key) from None
 
@@ -389,9 +414,23 @@ class Experiment:
         are settings apply to those)."""
         out: dict[str, list[str]] = {}
         for name in self.algorithms:
-            for key in get_algorithm(name, self.plugins.get(name, "")).settings:
+            for key in self._setting_names(name):
                 out.setdefault(key, []).append(name)
         return out
+
+    def _setting_names(self, name: str) -> list[str]:
+        """The names of algorithm ``name``'s settings (as recorded, for one taken from a store)."""
+        recorded = self.recorded_settings.get(name)
+        if recorded is not None:
+            return list(dict.fromkeys([*recorded["settings"], *recorded["sweep"]]))
+        return list(get_algorithm(name, self.plugins.get(name, "")).settings)
+
+    def _resolve(self, name: str, settings: dict[str, Any]) -> dict[str, Any]:
+        """Algorithm ``name``'s ``settings`` resolved (as recorded, for one taken from a store)."""
+        recorded = self.recorded_settings.get(name)
+        if recorded is not None:
+            return dict(recorded["settings"])
+        return resolve_settings(name, settings, self.world)
 
     def _split(self, point: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
         """A sweep point's scenario fields and its algorithm settings."""
@@ -401,9 +440,16 @@ class Experiment:
     def settings_at(self, name: str, point: dict[str, Any]) -> dict[str, Any]:
         """Algorithm ``name``'s settings at sweep point ``point``, resolved (the point's
         settings that the algorithm has override the experiment's)."""
+        recorded = self.recorded_settings.get(name)
+        if recorded is not None:
+            out = dict(recorded["settings"])
+            for key, values in recorded["sweep"].items():
+                if key in point and key in self.sweep and len(values) == len(self.sweep[key]):
+                    out[key] = values[self.sweep[key].index(point[key])]
+            return out
         schema = get_algorithm(name, self.plugins.get(name, "")).settings
         swept = {k: v for k, v in self._split(point)[1].items() if k in schema}
-        return resolve_settings(name, {**self.algorithms[name], **swept})
+        return resolve_settings(name, {**self.algorithms[name], **swept}, self.world)
 
     def _check_figure(self) -> None:
         figure = check_keys("[figure]", self.figure, "figure")
@@ -424,8 +470,10 @@ class Experiment:
 
     # ------------------------------------------------------------ construction
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Experiment:
+    @staticmethod
+    def _fields(data: Any) -> dict[str, Any]:
+        """The constructor's arguments from a table of an experiment file's keys (checked
+        for unknown keys and tables of the wrong kind; nothing imported)."""
         data = check_keys("an experiment", data, "experiment")
         unknown = sorted(set(data) - TOP_KEYS)
         if unknown:
@@ -440,7 +488,7 @@ class Experiment:
         if not isinstance(data.get("baseline", ""), str):
             raise ConfigError(f"baseline = {data['baseline']!r} must be an algorithm's name", "baseline")
         algorithms = check_keys("[algorithms]", data.get("algorithms", {}), "algorithms")
-        return cls(
+        return dict(
             name=data.get("name", "experiment"),
             scenario=dict(data.get("scenario", {"preset": "paper"})),
             algorithms={k: dict(v) if isinstance(v, dict) else v for k, v in algorithms.items()},
@@ -458,18 +506,89 @@ class Experiment:
         )
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> Experiment:
+    def from_dict(cls, data: dict[str, Any], *, allow_plugins: bool = False) -> Experiment:
+        """An experiment from the keys of an experiment file. Its ``[plugins]`` import and
+        run the code they name, so they are refused, before anything is imported, unless
+        ``allow_plugins`` (the CLI's ``--allow-plugins``: the user's consent)."""
+        fields = cls._fields(data)
+        if fields["plugins"] and not allow_plugins:
+            name = next(iter(fields["plugins"]))
+            raise ConfigError(f"plugins.{name} names code to import and run: allowed only with --allow-plugins "
+                              "(allow_plugins=True in Python)", "plugins")
+        return cls(**fields)
+
+    @classmethod
+    def from_toml(cls, path: str | Path, *, allow_plugins: bool = False) -> Experiment:
+        """An experiment file (:meth:`from_dict`; ``allow_plugins``: honour its ``[plugins]``)."""
         data = read_toml(path, "experiment")
         try:
-            return cls.from_dict(data)
+            return cls.from_dict(data, allow_plugins=allow_plugins)
         except ConfigError as exc:
             raise ConfigError(f"{path}: {exc}", exc.field) from None
+
+    @classmethod
+    def from_stored(cls, data: Any, record: Any = None) -> Experiment:
+        """The experiment of a stored run, from its configuration (:meth:`to_dict`) and its
+        :meth:`record`, as data alone: nothing they name is imported or called.
+
+        Built-in algorithms are checked as in a new experiment. Any other (a plugin, an
+        entry point) is taken with the settings the run recorded; its row's label is then its
+        name. Without a record (a store from before records), the configuration's key order
+        is the stored one and such an algorithm keeps only its explicit settings, so its
+        results are not found (counted as missing)."""
+        fields = cls._fields(data)
+        record = record if isinstance(record, dict) else {}
+        order = record.get("order") if isinstance(record.get("order"), dict) else {}
+        for key in ("algorithms", "sweep", "budgets"):
+            fields[key] = _in_order(fields[key], order.get(key))
+        if not all(isinstance(v, str) for v in fields["plugins"].values()):
+            raise ConfigError("[plugins] must map names to factories ('package.module:function')", "plugins")
+        recorded = record.get("settings") if isinstance(record.get("settings"), dict) else {}
+        names = {f.name for f in dataclasses.fields(Scenario)}
+        opaque = {}
+        for name, settings in fields["algorithms"].items():
+            if name in ALGORITHMS:
+                continue
+            entry = recorded.get(name)
+            if _is_recorded_entry(entry):
+                opaque[name] = {"settings": dict(entry["settings"]), "sweep": dict(entry["sweep"])}
+            else:  # a run recorded before records: its explicit settings, every non-scenario sweep key
+                explicit = dict(settings) if isinstance(settings, dict) else {}
+                explicit.pop("observation", None)
+                opaque[name] = {"settings": explicit, "sweep": {k: v for k, v in fields["sweep"].items()
+                                                                if k not in names and isinstance(v, list)}}
+        return cls(**fields, recorded_settings=opaque)
+
+    def record(self) -> dict[str, Any]:
+        """What a store keeps beside :meth:`to_dict` so that :meth:`from_stored` needs no
+        algorithm's code: ``order``, the order of the algorithms, sweep keys and budgets
+        (a stored configuration's keys are sorted), and ``settings``, for every algorithm
+        that is not built in, its resolved settings and the normalised values of its swept
+        settings (what its tasks' keys are made of)."""
+        scenario_fields = {f.name for f in dataclasses.fields(Scenario)}
+        settings: dict[str, Any] = {}
+        for name in self.algorithms:
+            if name in ALGORITHMS:
+                continue
+            if name in self.recorded_settings:
+                settings[name] = self.recorded_settings[name]
+                continue
+            own = set(self._setting_names(name))
+            swept = {key: [self.settings_at(name, {key: value})[key] for value in values]
+                     for key, values in self.sweep.items() if key in own and key not in scenario_fields}
+            settings[name] = {"settings": self.settings_at(name, {}), "sweep": swept}
+        return {"order": {"algorithms": list(self.algorithms), "sweep": list(self.sweep),
+                          "budgets": list(self.budgets)},
+                "settings": settings}
 
     def quick(self) -> Experiment:
         """The same experiment shrunk to a smoke test: 2 layouts, 1 seed, 2 episodes, the
         first two sweep values, and each algorithm's settings at their ``--quick`` values
         (short training, one training seed, short solver limits, the MILP's ``quick``
-        budget; :func:`~swiptopt.benchmark.algorithms.quick_settings`)."""
+        budget; :func:`~swiptopt.benchmark.algorithms.quick_settings`). Not for an
+        experiment read from a store with algorithms taken as recorded (:meth:`from_stored`)."""
+        if self.recorded_settings:
+            raise ConfigError(f"{self.name}: an experiment read from a store cannot be shrunk (--quick)", "quick")
         return dataclasses.replace(
             self,
             name=self.name,
@@ -478,7 +597,7 @@ class Experiment:
             episodes=min(self.episodes, 2),
             sweep={k: self._quick_values(k, v[:2]) for k, v in self.sweep.items()},
             budgets={name: self._quick_budgets(name, v) for name, v in self.budgets.items()},
-            algorithms={name: self._without_budget(name, quick_settings(name, settings))
+            algorithms={name: self._without_budget(name, quick_settings(name, settings, self.world))
                         for name, settings in self.algorithms.items()},
         )
 
@@ -539,7 +658,27 @@ class Experiment:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The configuration, with the keys of an experiment file (:meth:`from_dict`)."""
+        out = dataclasses.asdict(self)
+        del out["recorded_settings"]
+        return out
+
+
+def _in_order(table: dict[str, Any], names: Any) -> dict[str, Any]:
+    """``table`` with its keys in the order of ``names`` when that lists exactly its keys
+    (a recorded order), else as it is."""
+    if isinstance(names, list) and all(isinstance(n, str) for n in names) and len(names) == len(table) \
+            and set(names) == set(table):
+        return {name: table[name] for name in names}
+    return table
+
+
+def _is_recorded_entry(entry: Any) -> bool:
+    """Whether ``entry`` has the shape of an algorithm's recorded settings (:meth:`Experiment.record`)."""
+    return (isinstance(entry, dict) and isinstance(entry.get("settings"), dict)
+            and isinstance(entry.get("sweep"), dict)
+            and all(isinstance(k, str) for k in entry["settings"])
+            and all(isinstance(k, str) and isinstance(v, list) for k, v in entry["sweep"].items()))
 
 
 # ------------------------------------------------------------------- built-ins
@@ -861,23 +1000,23 @@ def paper_figures(link: str | None = None) -> list[Experiment]:
     return figures
 
 
-def load_experiments(spec: str) -> list[Experiment]:
+def load_experiments(spec: str, *, allow_plugins: bool = False) -> list[Experiment]:
     """The experiments ``spec`` names: a group of built-ins (:data:`GROUPS`), one built-in
-    by name, or a TOML file."""
+    by name, or a TOML file (``allow_plugins``: honour its ``[plugins]``)."""
     if spec in GROUPS:
         builtins = builtin_experiments()
         return [builtins[name] for name in GROUPS[spec]]
-    return [load_experiment(spec)]
+    return [load_experiment(spec, allow_plugins=allow_plugins)]
 
 
-def load_experiment(spec: str) -> Experiment:
-    """A built-in experiment by name or a TOML file."""
+def load_experiment(spec: str, *, allow_plugins: bool = False) -> Experiment:
+    """A built-in experiment by name or a TOML file (``allow_plugins``: honour its ``[plugins]``)."""
     builtins = builtin_experiments()
     if spec in builtins:
         return builtins[spec]
     path = Path(spec)
     if path.suffix.lower() == ".toml" or path.exists():
-        return Experiment.from_toml(path)
+        return Experiment.from_toml(path, allow_plugins=allow_plugins)
     raise ConfigError(
         f"{spec!r} is neither a built-in experiment{did_you_mean(spec, builtins)} ({', '.join(builtins)}) "
         "nor a .toml file",

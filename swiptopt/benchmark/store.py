@@ -4,7 +4,13 @@ Tasks are keyed by the hash of their resolved configuration (:attr:`Task.key`), 
 skips what is stored and a killed sweep loses at most the tasks in flight. A task that
 failed is kept apart with its reason (a rerun retries it). Each run of an experiment also
 records its provenance: the experiment's configuration, package versions, and swiptopt's
-own git revision when it runs from a checkout.
+own git revision when it runs from a checkout, and the experiment's record
+(:meth:`~swiptopt.benchmark.experiment.Experiment.record`: the order of its algorithms, and
+the settings of those that are not built in).
+
+Reading a store runs no code it names: its experiments are rebuilt from the stored data
+alone (:meth:`ResultStore.experiments`), so a plugin that is not installed here, or a
+configuration that names ``os:abort`` as a plugin, neither stops nor runs anything.
 
 The file is marked as ours (SQLite's ``application_id``, and ``user_version`` as the schema
 version) and checked on every open: a file that is not SQLite, is damaged, belongs to
@@ -41,6 +47,9 @@ APPLICATION_ID = 0x53575054
 SCHEMA_VERSION = 1
 #: How long a writer waits for another one before giving up, s.
 BUSY_TIMEOUT_S = 60.0
+#: The key of a run's provenance that holds the experiment's record (what reading it needs
+#: beside its configuration: :meth:`~swiptopt.benchmark.experiment.Experiment.record`).
+RUN_RECORD = "experiment_record"
 
 _TABLES = {
     "results": """CREATE TABLE results (
@@ -546,10 +555,15 @@ class ResultStore:
 
     # ------------------------------------------------------------ runs
 
-    def add_run(self, experiment: str, config: dict[str, Any]) -> None:
-        record = (experiment, json.dumps(config, sort_keys=True), json.dumps(provenance()), time.time())
+    def add_run(self, experiment: str, config: dict[str, Any], record: dict[str, Any] | None = None) -> None:
+        """Record a run of ``experiment`` with its configuration, and in its provenance the
+        experiment's ``record`` (:data:`RUN_RECORD`), when given."""
+        origin = provenance()
+        if record is not None:
+            origin[RUN_RECORD] = record
+        row = (experiment, json.dumps(config, sort_keys=True), json.dumps(origin), time.time())
         with self._write("recording the run") as db:
-            db.execute("INSERT INTO runs (experiment, config, provenance, started) VALUES (?, ?, ?, ?)", record)
+            db.execute("INSERT INTO runs (experiment, config, provenance, started) VALUES (?, ?, ?, ?)", row)
 
     def runs(self) -> list[dict[str, Any]]:
         """The latest run of each experiment name, oldest first."""
@@ -567,8 +581,11 @@ class ResultStore:
 
     def experiments(self, name: str | None = None) -> list[Any]:
         """The :class:`~swiptopt.benchmark.experiment.Experiment` of the latest run of each
-        experiment (or of ``name``), validated like a new one: a stored configuration this
-        version does not accept is a :class:`StoreError`."""
+        experiment (or of ``name``), rebuilt from the stored data alone
+        (:meth:`~swiptopt.benchmark.experiment.Experiment.from_stored`: no plugin or entry
+        point is loaded, nothing the store names is imported or called) and otherwise
+        validated like a new one: a stored configuration this version does not accept is a
+        :class:`StoreError`."""
         from swiptopt.benchmark.experiment import Experiment
 
         out = []
@@ -578,8 +595,10 @@ class ResultStore:
             config = run["config"]
             if not isinstance(config, dict):
                 raise StoreError(self.path, f"the run of {run['experiment']!r} has a configuration that is not a table")
+            origin = run["provenance"]
+            record = origin.get(RUN_RECORD) if isinstance(origin, dict) else None
             try:
-                out.append(Experiment.from_dict(config))
+                out.append(Experiment.from_stored(config, record))
             except ConfigError as exc:
                 raise StoreError(self.path, f"the run of {run['experiment']!r} has a configuration this version "
                                             f"does not accept: {exc}") from None

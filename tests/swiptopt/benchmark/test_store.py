@@ -343,6 +343,55 @@ def test_a_store_under_a_file_or_at_a_directory_is_refused(tmp_path, capsys):
         assert code == 2 and len(err) == 1 and words in err[0], err
 
 
+ORDER_TOML = """
+name = "order"
+layouts = 1
+episodes = 1
+baseline = "random"
+[scenario]
+preset = "paper"
+n_nodes = 4
+[sweep]
+split_ratio = [0.3, 0.5]
+n_nodes = [4, 5]
+[algorithms.random]
+[algorithms.greedy]
+"""
+
+
+def test_table_prints_a_stored_run_in_the_order_the_run_printed_it(tmp_path, capsys):
+    """A stored configuration's keys are sorted; the run's record keeps the experiment's
+    order of algorithms and sweep keys, so `table` prints what `run` printed."""
+    exp = tmp_path / "order.toml"
+    exp.write_text(ORDER_TOML)
+    store = tmp_path / "s.sqlite"
+    assert main(["run", str(exp), "--store", str(store), "--workers", "1", "--format", "markdown"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.index("| split_ratio=0.3, n_nodes=4 | random |") < printed.index(
+        "| split_ratio=0.3, n_nodes=4 | greedy |")
+    assert main(["table", str(store), "--format", "markdown"]) == 0
+    assert capsys.readouterr().out == printed
+    with ResultStore(store, readonly=True) as s:
+        (stored,) = s.experiments()
+    assert list(stored.algorithms) == ["random", "greedy"] and list(stored.sweep) == ["split_ratio", "n_nodes"]
+    assert stored == Experiment.from_toml(exp)
+
+
+def test_a_run_recorded_without_its_order_reads_in_the_stored_order(tmp_path):
+    experiment = Experiment.from_toml(_write_order(tmp_path))
+    with ResultStore(tmp_path / "s.sqlite") as s:
+        s.add_run("order", json.loads(json.dumps(experiment.to_dict())))  # as runs were recorded before
+        (stored,) = s.experiments()
+    assert list(stored.algorithms) == ["greedy", "random"] and list(stored.sweep) == ["n_nodes", "split_ratio"]
+    assert {t.key for t in stored.tasks()} == {t.key for t in experiment.tasks()}
+
+
+def _write_order(directory):
+    path = directory / "order.toml"
+    path.write_text(ORDER_TOML)
+    return path
+
+
 def test_failures_are_kept_apart_and_cleared_by_a_result(tmp_path):
     exp = Experiment.from_dict(SMALL)
     task = exp.tasks()[0].to_dict()
