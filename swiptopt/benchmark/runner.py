@@ -28,10 +28,19 @@ training, so a second run (or another experiment with the same training) trains 
 model trained across layouts serves every task of its training seed; the runner starts one
 task per model first, each alone in its batch, so the workers train different models at
 once, and a lock beside each model makes any other process that needs it wait and load it.
+A models directory that this process cannot write is read without locks, provided it holds
+every model the run needs. What would make the tasks of built-in deep-RL algorithms fail on
+their models (``models`` beside the store is a file, a directory where a model, its lock or
+the manifest goes, a read-only directory that lacks a model) is refused before any task runs
+(:func:`check_models_dir`).
+
+A plugin's algorithm runs only in the worker processes (never warmed up in this one), so a
+crash in its native code loses its own tasks and nothing else.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -67,6 +76,8 @@ NATIVE_MODULES = {
 MAX_WORKERS_PER_CORE = 4
 #: Dask schemes that reach another process.
 DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+#: How long connecting to a Dask scheduler may take before the run is refused, s.
+SCHEDULER_TIMEOUT_S = 20.0
 #: The key of a task dict sent to a worker that holds where trained models are kept (not
 #: part of the task: it does not change the result).
 MODELS_DIR = "models_dir"
@@ -239,17 +250,21 @@ def run_batch_isolated(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def warm_up(tasks: list[dict[str, Any]]) -> None:
-    """Run each algorithm of ``tasks`` once on a small scenario, so that workers forked
-    afterwards inherit the compiled kernel, the solvers' first-call set-up and every import
-    instead of each paying for them. The results are thrown away."""
+    """Run each built-in algorithm of ``tasks`` once on a small scenario, so that workers
+    forked afterwards inherit the compiled kernel, the solvers' first-call set-up and every
+    import instead of each paying for them. The results are thrown away. A plugin's
+    algorithm is never run here: a crash in its code would end the run, not only its task."""
+    from swiptopt.benchmark.algorithms import ALGORITHMS
     from swiptopt.scenario import Scenario
 
     small = Scenario.from_dict({"preset": "paper", "n_nodes": 4, "episode_steps": 10}).to_dict()
     seen: set[str] = set()
     for task in tasks:
-        algorithm = _algorithm_of(task)
+        if task["algorithm"] not in ALGORITHMS or task.get("plugin"):
+            continue
+        algorithm = ALGORITHMS[task["algorithm"]]
         # a trained model's warm-up would cost a training; its imports are in its modules
-        if task["algorithm"] in seen or uses_ompl(task) or (algorithm is not None and algorithm.trains_model):
+        if task["algorithm"] in seen or uses_ompl(task) or algorithm.trains_model:
             continue
         seen.add(task["algorithm"])
         settings = dict(task["settings"])
@@ -371,13 +386,19 @@ def _staged(stages: list[list[list[dict[str, Any]]]],
         yield from run(batches)
 
 
-def _dask(stages: list[list[list[dict[str, Any]]]], scheduler: str, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
+@contextlib.contextmanager
+def dask_client(scheduler: str | None) -> Iterator[Any]:
+    """A client of the Dask scheduler ``scheduler`` (``local:N``: a new local cluster on
+    loopback, closed with the client), or ``None`` without a scheduler. A scheduler that
+    cannot be reached within :data:`SCHEDULER_TIMEOUT_S` is a :class:`ConfigError` naming
+    it: connect before writing anything, so such a run leaves no trace."""
+    if scheduler is None:
+        yield None
+        return
     try:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import Client, LocalCluster
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
-    from swiptopt.benchmark.dask_plugin import PrepareWorker
-
     cluster = None
     if scheduler.startswith("local:"):
         cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1, processes=True,
@@ -386,31 +407,98 @@ def _dask(stages: list[list[list[dict[str, Any]]]], scheduler: str, modules: tup
     else:
         address = scheduler
     try:
-        client = Client(address, timeout="20s")
+        client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S:g}s")
     except (OSError, TimeoutError) as exc:
         if cluster is not None:
             cluster.close()
         raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}", "scheduler") from None
     try:
-        client.register_plugin(PrepareWorker(modules, watch_parent=cluster is not None))
-        for batches in stages:
-            pending = {client.submit(run_batch, b, pure=False): (b, False) for b in batches}
-            stream = as_completed(pending)
-            for future in stream:
-                batch, isolated = pending.pop(future)
-                try:
-                    yield future.result()
-                except Exception as exc:  # the worker died under the batch (KilledWorker, a crash)
-                    if isolated:
-                        yield [_failure(t, f"the Dask worker died running it: {one_line(exc)}") for t in batch]
-                    else:
-                        retry = client.submit(run_batch_isolated, batch, pure=False)
-                        pending[retry] = (batch, True)
-                        stream.add(retry)
+        yield client
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _dask(stages: list[list[list[dict[str, Any]]]], client: Any, modules: tuple[str, ...],
+          watch_parent: bool) -> Iterator[list[dict[str, Any]]]:
+    """The outcomes of each stage's batches on the Dask cluster of ``client``
+    (``watch_parent``: its workers are this process's, a local cluster's)."""
+    from dask.distributed import as_completed
+
+    from swiptopt.benchmark.dask_plugin import PrepareWorker
+
+    client.register_plugin(PrepareWorker(modules, watch_parent=watch_parent))
+    for batches in stages:
+        pending = {client.submit(run_batch, b, pure=False): (b, False) for b in batches}
+        stream = as_completed(pending)
+        for future in stream:
+            batch, isolated = pending.pop(future)
+            try:
+                yield future.result()
+            except Exception as exc:  # the worker died under the batch (KilledWorker, a crash)
+                if isolated:
+                    yield [_failure(t, f"the Dask worker died running it: {one_line(exc)}") for t in batch]
+                else:
+                    retry = client.submit(run_batch_isolated, batch, pure=False)
+                    pending[retry] = (batch, True)
+                    stream.add(retry)
+
+
+# ------------------------------------------------------------------------ models
+
+
+def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, ...] = ()) -> None:
+    """Refuse, before any task runs, a models directory the tasks could not use: a file at
+    its path (when any task keeps a model), a directory where the manifest or its lock goes,
+    and for each task of a built-in algorithm that keeps models (its ``trained_model``) a
+    directory where its model or its lock goes, a lock file that cannot be written, or a
+    directory this process cannot write that does not hold the model (a read-only
+    directory that holds every model is read as it is)."""
+    from rl.deep import MANIFEST, find_model, model_path
+    from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
+    from swiptopt.scenario import Scenario
+
+    keeping = [t for t in tasks if (a := _algorithm_of(t.to_dict())) is not None and a.trains_model]
+    if not keeping:
+        return
+    directory = Path(models_dir)
+    where = "trained models are kept in a directory of that name beside the store"
+    if directory.exists() and not directory.is_dir():
+        raise ConfigError(f"models directory {str(directory)!r} is a file: {where}; move the file away", "models")
+    for name in (MANIFEST, MANIFEST + ".lock"):
+        if (directory / name).is_dir():
+            raise ConfigError(f"{str(directory / name)!r} is a directory where the models' manifest goes: remove it",
+                              "models")
+    ancestor = directory
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    writable = os.access(ancestor, os.W_OK | os.X_OK)
+    seen: set[Path] = set()
+    for t in keeping:
+        algorithm = ALGORITHMS.get(t.algorithm)
+        if algorithm is None or t.plugin or algorithm.trained_model is None:
+            continue  # a plugin's code runs only in its tasks
+        training = tuple(t.training_layouts) if t.training_layouts is not None else None
+        context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, training, models_dir,
+                               t.world, (), tuple(pretrained))
+        config, scenario = algorithm.trained_model(t.settings, t.seed, context)
+        path = model_path(directory, config, scenario)
+        if path in seen:
+            continue
+        seen.add(path)
+        lock = path.with_name(path.name + ".lock")
+        for place, what in ((path, "a trained model"), (lock, "a model's lock")):
+            if place.is_dir():
+                raise ConfigError(f"{str(place)!r} is a directory where {what} goes: remove it", "models")
+        if not writable:
+            found, _ = find_model([directory, *pretrained], config, scenario)
+            if found is None:
+                raise ConfigError(f"models directory {str(directory)!r} is not writable and lacks the model "
+                                  f"{path.name} ({t.algorithm}): make it writable", "models")
+        elif lock.exists() and not os.access(lock, os.W_OK):
+            raise ConfigError(f"{str(lock)!r} (a model's lock) is not writable: remove it", "models")
 
 
 # ------------------------------------------------------------------------- a run
@@ -509,11 +597,16 @@ def execute(
     scheduler: str | None = None,
     on_progress: Callable[[int, int], None] | None = None,
     pretrained: tuple[str, ...] | list[str] = (),
+    client: Any = None,
 ) -> RunReport:
     """Run the experiment's tasks that the store lacks; commit each as it finishes.
 
     ``workers``: local processes (default: the machine's cores); ``scheduler``: a Dask
-    scheduler address, or ``local:N`` for a local Dask cluster on loopback.
+    scheduler address, or ``local:N`` for a local Dask cluster on loopback; ``client``: a
+    client of that scheduler already connected (:func:`dask_client`; else one is made here,
+    before the store records the run, and closed at the end). Everything that could stop
+    the run (the options, the models directory, the scheduler) is checked before the store
+    records it.
     ``on_progress(done, todo)`` is called after every committed task. A task that fails is
     recorded in the store (not as a result) and in the report; the others go on. Trained
     models go to ``models/`` beside the store (:func:`models_dir_for`); a model is reused
@@ -524,24 +617,50 @@ def execute(
     workers = check_run_options(workers, scheduler)
     pin_torch_cpu_paths()  # before torch computes here or in a forked worker
     tasks = experiment.tasks()
+    todo = _todo(tasks, store)
+    total = len({t.key for t in tasks})
+    models_dir = models_dir_for(store.path)
+    check_models_dir(todo, models_dir, tuple(pretrained))
+    with contextlib.ExitStack() as stack:
+        if scheduler and todo and client is None:  # reach the scheduler before the store records the run
+            client = stack.enter_context(dask_client(scheduler))
+        store.add_run(experiment.name, experiment.to_dict(), experiment.record())
+        if on_progress:
+            on_progress(0, len(todo))
+        if not todo:
+            return RunReport(total, total, 0, time.perf_counter() - start)
+        failures = _run_todo(todo, store, workers, scheduler, client, models_dir, tuple(pretrained), on_progress)
+    return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start, tuple(failures))
+
+
+def _todo(tasks: list[Task], store: ResultStore) -> list[Task]:
+    """The distinct tasks that the store lacks, in order."""
     stored = store.keys()
     unique: dict[str, Task] = {}
     for t in tasks:
         if t.key not in stored:
             unique.setdefault(t.key, t)
-    todo = list(unique.values())
-    total = len({t.key for t in tasks})
-    store.add_run(experiment.name, experiment.to_dict())
-    if on_progress:
-        on_progress(0, len(todo))
-    if not todo:
-        return RunReport(total, total, 0, time.perf_counter() - start)
+    return list(unique.values())
+
+
+def check_models_for(experiment: Experiment, store: ResultStore, pretrained: tuple[str, ...] | list[str] = ()) -> None:
+    """:func:`check_models_dir` for the tasks of ``experiment`` that ``store`` lacks (what
+    :func:`execute` checks first; a caller with several experiments checks them all before
+    running any)."""
+    check_models_dir(_todo(experiment.tasks(), store), models_dir_for(store.path), tuple(pretrained))
+
+
+def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str | None, client: Any,
+              models_dir: str, pretrained: tuple[str, ...],
+              on_progress: Callable[[int, int], None] | None) -> list[Failure]:
+    """Run the tasks (locally, or on the Dask cluster of ``client``), committing each
+    outcome to the store as it comes; returns the failures."""
     todo_dicts = [t.to_dict() for t in todo]
-    stages = _batches(todo, workers if scheduler is None else 4, models_dir_for(store.path), tuple(pretrained))
+    stages = _batches(todo, workers if scheduler is None else 4, models_dir, pretrained)
     modules = _modules_for(todo_dicts)
     limit = None
     if scheduler:
-        stream = _dask(stages, scheduler, modules)
+        stream = _dask(stages, client, modules, watch_parent=scheduler.startswith("local:"))
     else:
         # load the native libraries, limit their pools, then warm up: the forked workers
         # inherit all of it, and no OpenMP pool has started threads that a fork would break
@@ -568,4 +687,4 @@ def execute(
         stream.close()
         if limit is not None:
             limit.restore()
-    return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start, tuple(failures))
+    return failures

@@ -3,6 +3,7 @@ layouts training shared by every task of a seed; plugins; observations; layouts 
 
 import hashlib
 import json
+import sys
 import textwrap
 
 import pytest
@@ -14,6 +15,7 @@ from swiptopt.benchmark.runner import execute
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.cli import main
 from swiptopt.errors import ConfigError
+from tests.swiptopt.benchmark.test_store import cli_unprivileged
 
 pytest.importorskip("stable_baselines3")
 
@@ -278,13 +280,14 @@ def test_a_plugin_named_in_an_experiment_file_runs(tmp_path, monkeypatch, capsys
     monkeypatch.syspath_prepend(str(tmp_path))
     path = _plugin_experiment(tmp_path)
     store = tmp_path / "s.sqlite"
-    assert main(["run", str(path), "--store", str(store), "--workers", "1", "--format", "markdown"]) == 0
+    assert main(["run", str(path), "--store", str(store), "--workers", "1", "--format", "markdown",
+                 "--allow-plugins"]) == 0
     out = capsys.readouterr().out
     assert "| A2C |" in out and "| random |" in out
     assert len(models(tmp_path)) == 2 and all(m.startswith("a2c-") for m in models(tmp_path))  # one per layout
-    experiment = Experiment.from_toml(path)
+    experiment = Experiment.from_toml(path, allow_plugins=True)
     assert {t.plugin for t in experiment.tasks() if t.algorithm == "a2c"} == {"swiptopt_test_plugin_a2c:a2c"}
-    # the stored experiment brings its plugin back for `swiptopt table`
+    # `swiptopt table` reads the plugin's rows from the store, without the plugin
     assert main(["table", str(store), "--format", "csv"]) == 0
     assert "a2c,1,return" in capsys.readouterr().out.replace("\r", "")
 
@@ -303,7 +306,7 @@ def test_a_bad_plugin_is_one_line_and_exit_2_before_any_task(tmp_path, monkeypat
     if module == "swiptopt_no_such_module":
         (tmp_path / f"{module}.py").unlink()
     store = tmp_path / "s.sqlite"
-    assert main(["run", str(path), "--store", str(store)]) == 2
+    assert main(["run", str(path), "--store", str(store), "--allow-plugins"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err
     assert not store.exists()
@@ -339,3 +342,87 @@ def test_an_algorithm_from_an_installed_entry_point_runs(tmp_path, monkeypatch):
     assert all(r["length"] == experiment.scenario_for({}, 0).episode_steps for r in result["records"])
     with pytest.raises(ConfigError, match="unknown algorithm 'hover_e'.*did you mean 'hover_ep'"):
         tiny(algorithms={"hover_e": {}})
+
+
+# ------------------------------------------------------------------ the models directory
+
+MODELS_TOML = textwrap.dedent(f"""
+    name = "models"
+    layouts = 1
+    episodes = 1
+    [scenario]
+    preset = "tiny"
+    failure_prob_min = 0.05
+    failure_prob_max = 0.1
+    [algorithms.ppo]
+    {chr(10).join(f"{k} = {json.dumps(v)}" for k, v in TINY_PPO.items())}
+    training_seeds = 1
+    [algorithms.random]
+""")
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A directory with an experiment file, its store and the models/ its run trained."""
+    directory = tmp_path_factory.mktemp("trained")
+    (directory / "e.toml").write_text(MODELS_TOML, encoding="utf-8")
+    assert main(["run", str(directory / "e.toml"), "--store", str(directory / "s.sqlite"), "--workers", "1",
+                 "--format", "csv"]) == 0
+    (name,) = models(directory)
+    return directory, name
+
+
+def _refused(capsys, store, *words):
+    code = main(["run", str(store.parent / "e.toml"), "--store", str(store), "--workers", "1"])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1 and "Traceback" not in err[0], err
+    assert all(w in err[0] for w in words), err
+    with ResultStore(store, readonly=True) as s:
+        assert s.runs() == [] and s.count() == 0 and s.failures() == {}  # refused before any task
+
+
+@pytest.mark.parametrize("where", ["models", "model", "lock", "manifest.json", "manifest.json.lock"])
+def test_a_models_directory_that_would_fail_the_tasks_is_refused_before_any(trained, tmp_path, capsys, where):
+    directory, name = trained
+    (tmp_path / "e.toml").write_text(MODELS_TOML, encoding="utf-8")
+    if where == "models":
+        (tmp_path / "models").write_text("not a directory", encoding="utf-8")
+        _refused(capsys, tmp_path / "s.sqlite", str(tmp_path / "models"), "is a file")
+        return
+    blocked = tmp_path / "models" / {"model": name, "lock": name + ".lock"}.get(where, where)
+    blocked.mkdir(parents=True)
+    _refused(capsys, tmp_path / "s.sqlite", str(blocked), "is a directory")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="drops Linux capabilities when root")
+def test_a_read_only_models_directory_with_the_models_is_used_as_it_is(trained, tmp_path):
+    directory, name = trained
+    ready = tmp_path / "ready"
+    ready.mkdir()
+    (ready / "e.toml").write_text(MODELS_TOML, encoding="utf-8")
+    (ready / "models").mkdir()
+    for file in (directory / "models").iterdir():
+        if not file.name.endswith(".lock"):
+            (ready / "models" / file.name).write_bytes(file.read_bytes())
+    empty = tmp_path / "empty"
+    (empty / "models").mkdir(parents=True)
+    (empty / "e.toml").write_text(MODELS_TOML, encoding="utf-8")
+    for folder in (ready, empty):
+        (folder / "models").chmod(0o555)
+    try:
+        result = cli_unprivileged("run", str(ready / "e.toml"), "--store", str(ready / "s.sqlite"), "--workers", "1",
+                                  "--format", "csv")
+        assert result.returncode == 0, result.stderr
+        assert sorted(p.name for p in (ready / "models").iterdir()) == sorted(
+            p.name for p in (directory / "models").iterdir() if not p.name.endswith(".lock"))  # no lock made
+        with ResultStore(ready / "s.sqlite", readonly=True) as s:
+            extras = [r["extra"] for r in s.get(s.keys()).values() if r["task"]["algorithm"] == "ppo"]
+        assert [e["model_loaded"] for e in extras] == [True] and extras[0]["model_file"] == name
+        # one that lacks a model the run needs is refused before any task
+        result = cli_unprivileged("run", str(empty / "e.toml"), "--store", str(empty / "s.sqlite"), "--workers", "1")
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1, result.stderr
+        assert "not writable" in lines[0] and name in lines[0]
+    finally:
+        for folder in (ready, empty):
+            (folder / "models").chmod(0o755)

@@ -153,6 +153,34 @@ def test_run_options_are_checked_before_anything_runs(tmp_path):
         assert s.count() == 0 and s.runs() == []
 
 
+SMALL_TOML = """
+name = "small"
+layouts = 1
+episodes = 1
+[scenario]
+preset = "paper"
+n_nodes = 4
+[algorithms.random]
+"""
+
+
+def test_an_unreachable_scheduler_leaves_no_store_and_records_no_run(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(runner, "SCHEDULER_TIMEOUT_S", 1.0, raising=False)
+    exp = tmp_path / "e.toml"
+    exp.write_text(SMALL_TOML)
+    store = tmp_path / "s.sqlite"
+    code = main(["run", str(exp), "--store", str(store), "--scheduler", "tcp://127.0.0.1:1"])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1 and "cannot reach the Dask scheduler at 'tcp://127.0.0.1:1'" in err[0], err
+    assert not store.exists()
+    # through the API, on a store of its own: no run is recorded
+    with ResultStore(tmp_path / "t.sqlite") as s:
+        with pytest.raises(runner.ConfigError, match="cannot reach"):
+            execute(Experiment.from_toml(exp), s, scheduler="tcp://127.0.0.1:1")
+        assert s.runs() == [] and s.count() == 0
+
+
 # ------------------------------------------------------------------ parent death
 
 KILL_TOML = """
