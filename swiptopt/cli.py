@@ -2,10 +2,15 @@
 
 Every command turns bad input (an invalid scenario value, an unknown key, a malformed or
 missing file, a wrong option) into one line on stderr and exit code 2, never a traceback.
+
+An experiment file's ``[plugins]`` (code it names, to import and run) are honoured only
+with ``--allow-plugins``; ``table`` and ``plot`` read a store without running any code it
+names.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from collections import Counter
@@ -134,6 +139,22 @@ def _with_run_options(fn):  # type: ignore[no-untyped-def]
     return fn
 
 
+_allow_plugins_option = click.option(
+    "--allow-plugins", is_flag=True,
+    help="Honour the experiment file's [plugins]: import the modules they name and run their code.",
+)
+
+
+def _scheduler_client(scheduler: str | None):  # type: ignore[no-untyped-def]
+    """A client of a remote ``--scheduler``, connected before the store is opened, so an
+    unreachable one leaves no store behind (a ``local:N`` cluster starts with each run)."""
+    from swiptopt.benchmark.runner import dask_client
+
+    if scheduler is None or scheduler.startswith("local:"):
+        return contextlib.nullcontext(None)
+    return dask_client(scheduler)
+
+
 def _pretrained(retrain: bool) -> tuple[str, ...]:
     """The directories of shipped models a run may reuse (none with ``--retrain``)."""
     from swiptopt.benchmark.runner import PRETRAINED_DIR
@@ -149,7 +170,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from swiptopt.benchmark.runner import check_run_options, execute
+    from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     if quick:
@@ -159,7 +180,9 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     check_run_options(workers, scheduler)
     console = Console(stderr=True)
     texts, failures = [], []
-    with ResultStore(store_path or DEFAULT_STORE) as store:
+    with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
+        for experiment in experiments:  # the models directory, for every experiment, before any runs
+            check_models_for(experiment, store, _pretrained(retrain))
         for experiment in experiments:
             with Progress(
                 TextColumn(f"[bold]{experiment.name}[/]"), BarColumn(), MofNCompleteColumn(),
@@ -171,7 +194,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
                     progress.update(bar, completed=done, total=todo)
 
                 report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update,
-                                 pretrained=_pretrained(retrain))
+                                 pretrained=_pretrained(retrain), client=client)
             failed = f", {report.failed} failed" if report.failed else ""
             console.print(
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
@@ -339,11 +362,16 @@ def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) ->
 @click.option("--list", "list_", is_flag=True, expose_value=False, is_eager=True, callback=_print_builtins,
               help="List the built-in experiments and exit.")
 @_with_run_options
-def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain) -> None:  # type: ignore[no-untyped-def]
-    """Run a built-in experiment (by NAME) or a TOML experiment file and print its table."""
+@_allow_plugins_option
+def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # type: ignore[no-untyped-def]
+        allow_plugins) -> None:
+    """Run a built-in experiment (by NAME) or a TOML experiment file and print its table.
+
+    A file's [plugins] run code from outside swiptopt: they are refused unless
+    --allow-plugins is given (see docs/plugins.md)."""
     from swiptopt.benchmark.experiment import load_experiments
 
-    experiments = load_experiments(spec)
+    experiments = load_experiments(spec, allow_plugins=allow_plugins)
     _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output, caption=len(experiments) > 1,
                     retrain=retrain)
 
@@ -373,7 +401,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 
     from swiptopt.benchmark import plots
     from swiptopt.benchmark.experiment import paper_figures
-    from swiptopt.benchmark.runner import check_run_options, execute
+    from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     check_output_dir(outdir, "--outdir")
@@ -384,10 +412,12 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
         from swiptopt.benchmark.experiment import load_experiments
 
         experiments = [e.quick() if quick else e for e in load_experiments("learning-curve")]
-        with ResultStore(store_path or DEFAULT_STORE) as store:
+        with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
+            for experiment in experiments:
+                check_models_for(experiment, store, _pretrained(retrain))
             for experiment in experiments:
                 report = execute(experiment, store, workers=workers, scheduler=scheduler,
-                                 pretrained=_pretrained(retrain))
+                                 pretrained=_pretrained(retrain), client=client)
                 failures += report.failures
                 console.print(f"{experiment.name}: {report.ran} run, {report.cached} stored")
             figure = plots.learning_curve_figure(experiments, store, outdir)
@@ -397,14 +427,14 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
         if failures:
             raise click.exceptions.Exit(EXIT_TASKS_FAILED)
         return
-    with ResultStore(store_path or DEFAULT_STORE) as store:
+    with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
         written = plots.coverage_figure(outdir, quick=quick)
         console.print(f"coverage probability -> {', '.join(map(str, written))}")
         for experiment in paper_figures(link):
             name = experiment.name
             if quick:
                 experiment = experiment.quick()
-            report = execute(experiment, store, workers=workers, scheduler=scheduler)
+            report = execute(experiment, store, workers=workers, scheduler=scheduler, client=client)
             failures += report.failures
             figure = plots.experiment_figure(experiment, store, outdir)
             drawn = ", ".join(map(str, figure.paths)) or f"no figure: {figure.skipped}"
@@ -421,7 +451,8 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 @click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal")
 @click.option("--output", type=click.Path(dir_okay=False), default=None)
 def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
-    """Print the tables of the experiments recorded in a results store."""
+    """Print the tables of the experiments recorded in a results store (from the stored
+    data alone: no plugin is loaded; a plugin's rows are labelled by its name)."""
     from swiptopt.benchmark.store import ResultStore
 
     check_output_file(output, "--output")
@@ -469,7 +500,8 @@ def models() -> None:
 @click.option("--quick", is_flag=True, help="The experiments' --quick tasks.")
 @click.option("--to", "outdir", type=click.Path(file_okay=False), required=True,
               help="The directory to copy them to (its manifest.json records each file's SHA-256).")
-def models_export(store_path, names, quick, outdir) -> None:  # type: ignore[no-untyped-def]
+@_allow_plugins_option
+def models_export(store_path, names, quick, outdir, allow_plugins) -> None:  # type: ignore[no-untyped-def]
     """Copy the model files the tasks of a results store loaded or trained (each checked
     against the manifest that vouched for it) into a directory with its own manifest.
 
@@ -488,7 +520,7 @@ def models_export(store_path, names, quick, outdir) -> None:  # type: ignore[no-
     target = Path(outdir)
     wanted = None
     if names:
-        experiments = [e for name in names for e in load_experiments(name)]
+        experiments = [e for name in names for e in load_experiments(name, allow_plugins=allow_plugins)]
         wanted = {t.key for e in experiments for t in (e.quick() if quick else e).tasks()}
     copied: dict[str, str] = {}
     with ResultStore(store_path, readonly=True) as store:
