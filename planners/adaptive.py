@@ -79,16 +79,16 @@ def gain_survival(tables: K.Tables, threshold_gain: np.ndarray) -> np.ndarray:
     P = exp(-x) for K = 0 (Rayleigh), Marcum's Q (``scipy.stats.ncx2.sf``) otherwise.
     """
     x = np.asarray(threshold_gain, dtype=float)
-    p = tables.params
-    channel = int(p[K.P_CHANNEL])
-    if channel == 0 or (channel == 1 and p[K.P_SIGMA_DB] == 0.0):
+    p = tables.named
+    channel = int(p.channel)
+    if channel == 0 or (channel == 1 and p.shadowing_sigma_db == 0.0):
         return (x <= 1.0).astype(float)
     if channel == 1:
-        scale = p[K.P_SIGMA_DB] * K.LN10_OVER_10
+        scale = p.shadowing_sigma_db * K.LN10_OVER_10
         with np.errstate(divide="ignore"):
             z = fpmath.log(np.maximum(x, 0.0)) / scale
         return np.array([0.5 * math.erfc(v / math.sqrt(2.0)) for v in z.ravel()]).reshape(x.shape)
-    k = p[K.P_RICIAN_K]
+    k = p.rician_k
     if k == 0.0:
         return np.array([math.exp(-v) for v in x.ravel()]).reshape(x.shape)
     from scipy.stats import ncx2
@@ -98,25 +98,25 @@ def gain_survival(tables: K.Tables, threshold_gain: np.ndarray) -> np.ndarray:
 
 def _regime(tables: K.Tables) -> str:
     """The regime of the tables (module docstring), or a ConfigError naming why neither holds."""
-    p = tables.params
-    channel = int(p[K.P_CHANNEL])
-    if channel == 0 or (channel == 1 and p[K.P_SIGMA_DB] == 0.0):
+    p = tables.named
+    channel = int(p.channel)
+    if channel == 0 or (channel == 1 and p.shadowing_sigma_db == 0.0):
         return NO_FADING
-    if p[K.P_LINK] != K.LINK_CODES["downlink_split"]:
+    if p.link != K.LINK_CODES["downlink_split"]:
         raise ConfigError("adaptive_optimum with fading needs link = 'downlink_split': uplink packets vary with the gain", "link")
-    if p[K.P_GATE_J] > 0 or p[K.P_DRAIN_J] > 0:
+    if p.gate_j > 0 or p.drain_j > 0:
         raise ConfigError(
             "adaptive_optimum with fading needs energy_gate_j = 0 and idle_drain_w = 0: the charge, which "
             "fading makes continuous, would matter", "energy_gate_j",
         )
     room = tables.capacity - tables.energy0
-    if p[K.P_GAMMA] < 1.0 and np.any(room > 0):
+    if p.reward_weight < 1.0 and np.any(room > 0):
         raise ConfigError(
-            f"adaptive_optimum with fading needs reward_weight = 1 or full storage: at Gamma = {p[K.P_GAMMA]:g} the "
+            f"adaptive_optimum with fading needs reward_weight = 1 or full storage: at Gamma = {p.reward_weight:g} the "
             "charge, which fading makes continuous, counts", "reward_weight",
         )
     coverable = np.unique(tables.cov_node)
-    least_bits = p[K.P_DT] * link_rate_bps(p[K.P_BW], p[K.P_ALPHA] * p[K.P_SNR_TH])
+    least_bits = p.dt_s * link_rate_bps(p.bandwidth_hz, p.split_ratio * p.snr_threshold)
     short = coverable[tables.data0[coverable] > least_bits]
     if short.size:
         raise ConfigError(
@@ -143,7 +143,7 @@ class _Branching:
 
     @classmethod
     def of(cls, tables: K.Tables, regime: str) -> _Branching:
-        p = tables.params
+        p = tables.named
         nodes = tables.cov_node
         rows = max(tables.normal_rows, 1)
         fail = tables.fail_prob[nodes] if tables.draws_uniforms else np.zeros(len(nodes))
@@ -154,15 +154,15 @@ class _Branching:
         if regime == NO_FADING:
             p_ok = 1.0 - fail
         else:
-            need = p[K.P_SNR_TH] / tables.cov_snr  # the gain at which the link reaches the threshold
+            need = p.snr_threshold / tables.cov_snr  # the gain at which the link reaches the threshold
             p_ok = (1.0 - fail) * gain_survival(tables, need)
             # gains of 4x and 1/4 the needed one: the kernel's gain lands far from the threshold
-            if int(p[K.P_CHANNEL]) == 1:
-                scale = p[K.P_SIGMA_DB] * K.LN10_OVER_10
+            if int(p.channel) == 1:
+                scale = p.shadowing_sigma_db * K.LN10_OVER_10
                 ok_z[:, 0] = fpmath.log(4.0 * need) / scale
                 no_z[:, 0] = fpmath.log(need / 4.0) / scale
             else:
-                k = p[K.P_RICIAN_K]
+                k = p.rician_k
                 los, scatter = math.sqrt(k / (k + 1.0)), math.sqrt(0.5 / (k + 1.0))
                 ok_z[:, 0] = (np.sqrt(4.0 * need) - los) / scatter
                 no_z[:, 0] = (np.sqrt(need / 4.0) - los) / scatter
@@ -241,14 +241,14 @@ class _Stepper:
 
 
 def _tracks_charge(tables: K.Tables, regime: str) -> bool:
-    p = tables.params
+    p = tables.named
     if regime == ALL_OR_NOTHING:
         return False
     # the charge matters to the reward, to "served", to the gate, to the uplink or to the drain
     room = tables.capacity - tables.energy0
     return bool(
-        (p[K.P_GAMMA] < 1.0 and np.any(room > 0)) or p[K.P_GATE_J] > 0 or p[K.P_DRAIN_J] > 0
-        or p[K.P_LINK] == K.LINK_CODES["uplink"]
+        (p.reward_weight < 1.0 and np.any(room > 0)) or p.gate_j > 0 or p.drain_j > 0
+        or p.link == K.LINK_CODES["uplink"]
     )
 
 
@@ -269,7 +269,7 @@ def adaptive_optimum(
     regime = _regime(t)
     charge = _tracks_charge(t, regime)
     stepper = _Stepper(t, regime)
-    steps = int(t.params[K.P_STEPS])
+    steps = int(t.named.steps)
     start = K.new_state(t)
     layers: list[dict[bytes, K.EpisodeState]] = [{state_key(start, charge): start}]
     edges: list[dict[bytes, list[list[tuple[float, float, bytes | None]]]]] = []
@@ -324,7 +324,7 @@ def open_loop_value(scenario: Scenario, actions: list[int], *, tables: K.Tables 
     start = K.new_state(t)
     states: dict[bytes, tuple[float, K.EpisodeState]] = {state_key(start, charge): (1.0, start)}
     total = 0.0
-    for a in actions[: int(t.params[K.P_STEPS])]:
+    for a in actions[: int(t.named.steps)]:
         nxt: dict[bytes, tuple[float, K.EpisodeState]] = {}
         for weight, state in states.values():
             for prob, s, reward, code in stepper.branches(state, int(a)):

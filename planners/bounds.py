@@ -92,8 +92,8 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
     ``env.tables``), else built here.
     """
     t = K.build_tables(scenario) if tables is None else tables
-    p = t.params
-    gamma = p[K.P_GAMMA]
+    p = t.named
+    gamma = p.reward_weight
     coverable = np.zeros(t.n_nodes, dtype=bool)
     coverable[np.unique(t.cov_node)] = True
     data_cap = float(t.data0[coverable].sum())
@@ -102,37 +102,37 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
     if uplink:
         # a node that sends frees storage to be refilled: at most every packet of its data,
         # each at the slowest rate a link in service can have (SNR at the threshold)
-        slowest_bps = float(shannon_rate_bps(p[K.P_BW], p[K.P_SNR_TH]))
-        packets = np.ceil(t.data0[coverable] / p[K.P_PACKET_BITS])
-        packet_j = (p[K.P_NODE_TX_W] + p[K.P_NODE_CIRCUIT_W]) * p[K.P_PACKET_BITS] / slowest_bps
+        slowest_bps = float(shannon_rate_bps(p.bandwidth_hz, p.snr_threshold))
+        packets = np.ceil(t.data0[coverable] / p.packet_bits)
+        packet_j = (p.node_tx_w + p.node_circuit_w) * p.packet_bits / slowest_bps
         energy_cap += float(packets.sum() * packet_j)
     if scenario.idle_drain_w > 0:
         # a draining node can take energy again: its room is refilled by at most the drain
-        energy_cap += float(coverable.sum() * p[K.P_DRAIN_J] * scenario.episode_steps)
+        energy_cap += float(coverable.sum() * p.drain_j * scenario.episode_steps)
     data_bound, energy_bound = data_cap, energy_cap
     if scenario.channel == "none":
         # the most any one step can deliver, from the best cell, ignoring every cap
-        dt = p[K.P_DT]
+        dt = p.dt_s
         if uplink:
             # a step carries at most the node's own rate for the whole step
-            up = t.cov_snr * p[K.P_UPLINK_SNR_GAIN]
-            bits = np.where(up >= p[K.P_SNR_TH], dt * shannon_rate_bps(p[K.P_BW], up), 0.0)
+            up = t.cov_snr * p.uplink_snr_gain
+            bits = np.where(up >= p.snr_threshold, dt * shannon_rate_bps(p.bandwidth_hz, up), 0.0)
         else:
-            bits = dt * shannon_rate_bps(p[K.P_BW], p[K.P_ALPHA] * t.cov_snr)
+            bits = dt * shannon_rate_bps(p.bandwidth_hz, p.split_ratio * t.cov_snr)
         joules = dt * harvest_from_input_array_w(
-            (1 - p[K.P_ALPHA]) * t.cov_pav, p[K.P_LOGISTIC] == 1.0, p[K.P_ETA], p[K.P_LMAX], p[K.P_LA], p[K.P_LB]
+            (1 - p.split_ratio) * t.cov_pav, p.logistic == 1.0, p.efficiency, p.logistic_max_w, p.logistic_a_per_w, p.logistic_b_w
         )
         cell_of_pair = np.repeat(np.arange(t.n_cells), np.diff(t.cov_ptr))
         per_cell_bits = np.bincount(cell_of_pair, weights=bits, minlength=t.n_cells)
         per_cell_joules = np.bincount(cell_of_pair, weights=joules, minlength=t.n_cells)
         data_bound = min(data_cap, scenario.episode_steps * float(per_cell_bits.max()))
         energy_bound = min(energy_cap, scenario.episode_steps * float(per_cell_joules.max()))
-        step_reward = gamma * per_cell_bits / p[K.P_DATA_REF] + (1 - gamma) * per_cell_joules / p[K.P_ENERGY_REF]
-        reward_cap = gamma * data_cap / p[K.P_DATA_REF] + (1 - gamma) * energy_cap / p[K.P_ENERGY_REF]
+        step_reward = gamma * per_cell_bits / p.data_ref_bits + (1 - gamma) * per_cell_joules / p.energy_ref_j
+        reward_cap = gamma * data_cap / p.data_ref_bits + (1 - gamma) * energy_cap / p.energy_ref_j
         return UpperBound(
             float(min(reward_cap, scenario.episode_steps * float(step_reward.max()))), data_bound, energy_bound
         )
-    reward_cap = gamma * data_cap / p[K.P_DATA_REF] + (1 - gamma) * energy_cap / p[K.P_ENERGY_REF]
+    reward_cap = gamma * data_cap / p.data_ref_bits + (1 - gamma) * energy_cap / p.energy_ref_j
     return UpperBound(float(reward_cap), data_bound, energy_bound)
 
 

@@ -86,7 +86,7 @@ class Draws:
     @classmethod
     def sample(cls, tables: K.Tables, rng: np.random.Generator | int | None) -> Draws:
         rng = np.random.default_rng(rng)
-        steps, n = int(tables.params[K.P_STEPS]), tables.n_nodes
+        steps, n = int(tables.named.steps), tables.n_nodes
         uniforms = rng.random((steps, n)) if tables.draws_uniforms else np.ones((steps, n))
         rows = max(tables.normal_rows, 1)
         normals = rng.standard_normal((steps, n, rows)) if tables.normal_rows else np.zeros((steps, n, rows))
@@ -106,9 +106,8 @@ def step_amounts(tables: K.Tables, draws: Draws) -> tuple[np.ndarray, np.ndarray
     pseudo = np.arange(nnz, dtype=np.int64)
     unbounded = np.full(nnz, np.inf)
     fail = tables.fail_prob[tables.cov_node].astype(float)
-    params = tables.params.copy()
-    params[K.P_DRAIN_J] = 0.0  # no pseudo-node drains (drain is refused anyway)
-    gate = float(params[K.P_GATE_J])
+    params = K.replace_params(tables.params, drain_j=0.0)  # no pseudo-node drains (drain is refused anyway)
+    gate = tables.named.gate_j
     for t in range(steps):
         uniforms = np.ascontiguousarray(draws.uniforms[t, tables.cov_node])
         normals = np.ascontiguousarray(draws.normals[t, tables.cov_node, :rows].ravel())

@@ -236,7 +236,7 @@ def solve_optimum(
 def unsupported_reason(scenario: Scenario, tables: K.Tables) -> str:
     """Why the model cannot express the scenario ('' when it can); the time-indexed
     programs of :mod:`planners.hindsight` share these limits."""
-    p = tables.params
+    p = tables.named
     if scenario.link == "uplink":
         return (
             "link = 'uplink': a node's data depends on the energy it has stored when served, hence on "
@@ -244,16 +244,16 @@ def unsupported_reason(scenario: Scenario, tables: K.Tables) -> str:
         )
     if scenario.idle_drain_w > 0:
         return f"idle_drain_w = {scenario.idle_drain_w:g}: a draining node's storage makes service depend on timing"
-    if p[K.P_GATE_J] > 0 and np.any(tables.energy0 < p[K.P_GATE_J]):
+    if p.gate_j > 0 and np.any(tables.energy0 < p.gate_j):
         return (
-            f"energy_gate_j = {p[K.P_GATE_J]:g}: a node starting below the gate cannot send until charged, "
+            f"energy_gate_j = {p.gate_j:g}: a node starting below the gate cannot send until charged, "
             "so its data depends on the order of service"
         )
-    worst = float(tables.propulsion_j.max()) + p[K.P_HOTEL_J] + p[K.P_PROJECTOR_J]
-    if worst * p[K.P_STEPS] >= p[K.P_BATTERY_J]:
+    worst = float(tables.propulsion_j.max()) + p.hotel_j + p.projector_j
+    if worst * p.steps >= p.battery_j:
         return (
-            f"battery_j = {p[K.P_BATTERY_J]:g}: the battery may run out within the episode "
-            f"(up to {worst * p[K.P_STEPS]:g} J), which the model does not track"
+            f"battery_j = {p.battery_j:g}: the battery may run out within the episode "
+            f"(up to {worst * p.steps:g} J), which the model does not track"
         )
     return ""
 

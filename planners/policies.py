@@ -140,7 +140,7 @@ class _Executor:
 
     def _needs_service(self, cell: int) -> bool:
         t, s = self._env.tables, self._env.state
-        gamma = t.params[K.P_GAMMA]
+        gamma = t.named.reward_weight
         return any(not K.is_served(s.data_left, s.energy, t.capacity, gamma, i) for i in t.covered(cell))
 
     def predict(self, obs: Any, deterministic: bool = True) -> int:
@@ -356,7 +356,7 @@ class GreedyPlanner(_Executor):
         if self._env is None or self._env.state is None:
             raise RuntimeError("call begin_episode(env, obs, info) after each reset (swiptopt.evaluate does)")
         t, s = self._env.tables, self._env.state
-        gamma = t.params[K.P_GAMMA]
+        gamma = t.named.reward_weight
         cell = s.cell
         if self._target >= 0:
             done = K.is_served(s.data_left, s.energy, t.capacity, gamma, self._target)

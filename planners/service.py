@@ -203,51 +203,51 @@ class StepModel:
 
 def step_model(tables: K.Tables) -> StepModel:
     """The per-step model of a scenario from its kernel tables (see the module docstring)."""
-    p = tables.params
-    dt, alpha = p[K.P_DT], p[K.P_ALPHA]
-    gamma = p[K.P_GAMMA]
+    p = tables.named
+    dt, alpha = p.dt_s, p.split_ratio
+    gamma = p.reward_weight
     nodes = tables.cov_node
     data = tables.data0.astype(float)
     room = np.maximum(tables.capacity - tables.energy0, 0.0)
     harvester = dict(
-        efficiency=p[K.P_ETA],
-        model="logistic" if p[K.P_LOGISTIC] == 1.0 else "linear",
-        logistic_max_w=p[K.P_LMAX],
-        logistic_a_per_w=p[K.P_LA],
-        logistic_b_w=p[K.P_LB],
+        efficiency=p.efficiency,
+        model="logistic" if p.logistic == 1.0 else "linear",
+        logistic_max_w=p.logistic_max_w,
+        logistic_a_per_w=p.logistic_a_per_w,
+        logistic_b_w=p.logistic_b_w,
     )
 
-    uplink = p[K.P_LINK] == K.LINK_CODES["uplink"]
+    uplink = p.link == K.LINK_CODES["uplink"]
 
     def step_bits(gain: np.ndarray, snr: np.ndarray) -> np.ndarray:
         if uplink:
             # the whole packets that fit the step at the node's own SNR; their energy is not modelled
-            up = gain * snr * p[K.P_UPLINK_SNR_GAIN]
-            ok = up >= p[K.P_SNR_TH]
-            rate = shannon_rate_bps(p[K.P_BW], np.where(ok, up, 1.0))
-            return np.where(ok, np.floor(dt / (p[K.P_PACKET_BITS] / rate)) * p[K.P_PACKET_BITS], 0.0)
-        return np.where(gain * snr >= p[K.P_SNR_TH], dt * shannon_rate_bps(p[K.P_BW], alpha * (gain * snr)), 0.0)
+            up = gain * snr * p.uplink_snr_gain
+            ok = up >= p.snr_threshold
+            rate = shannon_rate_bps(p.bandwidth_hz, np.where(ok, up, 1.0))
+            return np.where(ok, np.floor(dt / (p.packet_bits / rate)) * p.packet_bits, 0.0)
+        return np.where(gain * snr >= p.snr_threshold, dt * shannon_rate_bps(p.bandwidth_hz, alpha * (gain * snr)), 0.0)
 
     def step_joules(gain: np.ndarray, pav: np.ndarray) -> np.ndarray:
         # the kernel sends (1 - alpha) * gain * P_av to the harvester
         return dt * harvested_power_w(gain * pav, alpha, **harvester)
 
-    channel = int(p[K.P_CHANNEL])
-    deterministic = channel == 0 or (channel == 1 and p[K.P_SIGMA_DB] == 0.0)
+    channel = int(p.channel)
+    deterministic = channel == 0 or (channel == 1 and p.shadowing_sigma_db == 0.0)
     if deterministic:
         one = np.ones(len(nodes))
         bits = np.minimum(step_bits(one, tables.cov_snr), data[nodes])
         joules = np.minimum(step_joules(one, tables.cov_pav), room[nodes])
     else:
-        quantile, cdf = _gain_distribution(channel, p[K.P_SIGMA_DB], p[K.P_RICIAN_K])
-        threshold_gain = p[K.P_SNR_TH] / (tables.cov_snr * (p[K.P_UPLINK_SNR_GAIN] if uplink else 1.0))
+        quantile, cdf = _gain_distribution(channel, p.shadowing_sigma_db, p.rician_k)
+        threshold_gain = p.snr_threshold / (tables.cov_snr * (p.uplink_snr_gain if uplink else 1.0))
         bits = _expected_capped(
             lambda g: step_bits(g, tables.cov_snr[:, None]), data[nodes], quantile, cdf, kinks=[threshold_gain],
         )
         joules = _expected_capped(lambda g: step_joules(g, tables.cov_pav[:, None]), room[nodes], quantile, cdf)
     bits = bits * (1.0 - tables.fail_prob[nodes])  # a failed link carries no data (energy still flows)
 
-    step_cost = p[K.P_LAMBDA] * (tables.propulsion_j + p[K.P_HOTEL_J]) / p[K.P_MOVE_REF]
+    step_cost = p.movement_weight * (tables.propulsion_j + p.hotel_j) / p.move_ref_j
     stays = np.where(tables.moved, np.inf, step_cost)
     stay_action = np.argmin(stays, axis=1)
     return StepModel(
@@ -259,13 +259,13 @@ def step_model(tables: K.Tables) -> StepModel:
         data_bits=data,
         room_j=room,
         capacity_j=tables.capacity.astype(float),
-        data_weight=float(gamma / p[K.P_DATA_REF]),
-        energy_weight=float((1.0 - gamma) / p[K.P_ENERGY_REF]),
+        data_weight=float(gamma / p.data_ref_bits),
+        energy_weight=float((1.0 - gamma) / p.energy_ref_j),
         step_cost=step_cost,
         stay_action=stay_action.astype(np.int64),
         stay_cost=stays[np.arange(tables.n_cells), stay_action],
         start_cell=int(tables.start_cell),
-        steps=int(p[K.P_STEPS]),
+        steps=int(p.steps),
         needs_energy=bool(gamma < 1.0),
         exact=bool(deterministic and not tables.draws_uniforms and not uplink),
         uplink=bool(uplink),

@@ -28,6 +28,7 @@ so it never touches a (closed) obstacle.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable
@@ -136,6 +137,11 @@ class World:
     @property
     def step_duration_s(self) -> float:
         return float(self.params[K.P_DT])
+
+    @functools.cached_property
+    def named(self) -> K.Params:
+        """:attr:`params` by name."""
+        return K.named(self.params)
 
 
 def build_world(scenario: Scenario) -> World:

@@ -380,7 +380,7 @@ class AuvSwiptEnv(LayoutEnv):
                     self.state.data_left,
                     self.state.energy,
                     self.tables.capacity,
-                    self.tables.params[K.P_GAMMA],
+                    self.tables.named.reward_weight,
                 )
             )
         else:
@@ -459,7 +459,7 @@ class AuvSwiptEnv(LayoutEnv):
 
         s, t, st = self.scenario, self.tables, self.state
         nodes = s.layout.positions_m
-        served = np.array([K.is_served(st.data_left, st.energy, t.capacity, t.params[K.P_GAMMA], i) for i in range(t.n_nodes)])
+        served = np.array([K.is_served(st.data_left, st.energy, t.capacity, t.named.reward_weight, i) for i in range(t.n_nodes)])
         covered = np.zeros(t.n_nodes, dtype=bool)
         covered[t.covered(st.cell)] = True
         path = s.cell_centers_m[np.asarray(self.path, dtype=np.int64)]

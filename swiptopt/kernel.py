@@ -18,9 +18,10 @@ same episode bit for bit, whichever path runs it.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -49,6 +50,72 @@ P_DRAIN_J, P_GATE_J, P_BATTERY_J, P_STEPS, P_DATA_TARGET, P_ENERGY_TARGET = rang
 P_DRAW_UNIFORMS, P_NORMAL_ROWS = range(25, 27)
 P_LINK, P_UPLINK_SNR_GAIN, P_NODE_TX_W, P_NODE_CIRCUIT_W, P_PACKET_BITS = range(27, 32)
 N_PARAMS = 32
+
+class Params(NamedTuple):
+    """The scenario's scalars by name: :func:`named` of a parameter vector (``Tables.params``,
+    indexed by the ``P_*`` constants inside the compiled kernel). Callers outside the kernel
+    read them here, by name; the values are the vector's own floats."""
+
+    dt_s: float
+    bandwidth_hz: float
+    split_ratio: float
+    """alpha: the share of the received signal sent to decoding (0 with the uplink)."""
+    logistic: float
+    """1.0 for the logistic harvester, 0.0 for the linear one."""
+    efficiency: float
+    logistic_max_w: float
+    logistic_a_per_w: float
+    logistic_b_w: float
+    snr_threshold: float
+    """Linear."""
+    channel: float
+    """:data:`CHANNEL_CODES`."""
+    shadowing_sigma_db: float
+    rician_k: float
+    reward_weight: float
+    """Gamma."""
+    movement_weight: float
+    """lambda."""
+    data_ref_bits: float
+    energy_ref_j: float
+    move_ref_j: float
+    projector_j: float
+    """Projector energy of a step that covers a node, J."""
+    hotel_j: float
+    """Hotel energy of a step, J."""
+    drain_j: float
+    """Idle drain of a node per step, J."""
+    gate_j: float
+    battery_j: float
+    steps: float
+    """Episode length, steps."""
+    data_target_bits: float
+    energy_target_j: float
+    draw_uniforms: float
+    """1.0 when steps draw link-failure uniforms."""
+    normal_rows: float
+    """Fading normals per node and step."""
+    link: float
+    """:data:`LINK_CODES`."""
+    uplink_snr_gain: float
+    """Linear."""
+    node_tx_w: float
+    node_circuit_w: float
+    packet_bits: float
+
+
+def named(params: np.ndarray) -> Params:
+    """The parameter vector ``params`` (N_PARAMS,) by name."""
+    return Params._make(float(x) for x in params)
+
+
+def replace_params(params: np.ndarray, **changes: float) -> np.ndarray:
+    """A copy of the parameter vector with the named entries (:class:`Params` fields) changed."""
+    out = np.array(params, dtype=float)
+    for name, value in changes.items():
+        out[Params._fields.index(name)] = value
+    return out
+
 
 #: ``params[P_LINK]`` of each data link (SPEC 3.2b).
 LINK_CODES = {"downlink_split": 0, "uplink": 1}
@@ -105,6 +172,11 @@ class Tables:
     """Whether a step needs link-failure draws (some failure probability > 0)."""
     normal_rows: int
     """Fading draws per node and step: 0 (no fading), 1 (shadowing) or 2 (Rician)."""
+
+    @functools.cached_property
+    def named(self) -> Params:
+        """:attr:`params` by name."""
+        return named(self.params)
 
     def covered(self, cell: int) -> np.ndarray:
         """Indices of the nodes covered from ``cell``."""

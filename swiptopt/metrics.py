@@ -72,12 +72,12 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
     that looks like one); ``jain_*`` are NaN when nothing at all was delivered.
     """
     acc = state.acc
-    params = tables.params
-    gamma = params[K.P_GAMMA]
+    params = tables.named
+    gamma = params.reward_weight
     motion_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
     auv_j = motion_j + float(acc[K.A_PROJECTOR_J])
-    always_on_j = motion_j + float(params[K.P_PROJECTOR_J]) * state.t
-    per_node_j = motion_j + float(params[K.P_PROJECTOR_J]) * float(acc[K.A_COVERED_NODE_STEPS])
+    always_on_j = motion_j + params.projector_j * state.t
+    per_node_j = motion_j + params.projector_j * float(acc[K.A_COVERED_NODE_STEPS])
     bits = float(acc[K.A_BITS])
     served = int(np.count_nonzero(K.served_mask(state.data_left, state.energy, tables.capacity, gamma)))
     steps_data = acc[K.A_STEPS_DATA_TARGET]
@@ -90,7 +90,7 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
         "auv_propulsion_j": float(acc[K.A_PROPULSION_J]),
         "auv_hotel_j": float(acc[K.A_HOTEL_J]),
         "auv_projector_j": float(acc[K.A_PROJECTOR_J]),
-        "mission_time_s": state.t * float(params[K.P_DT]),
+        "mission_time_s": state.t * params.dt_s,
         "energy_efficiency_bit_per_j": _ratio(bits, auv_j),
         "energy_efficiency_always_on_bit_per_j": _ratio(bits, always_on_j),
         "energy_efficiency_per_node_bit_per_j": _ratio(bits, per_node_j),

@@ -57,9 +57,9 @@ class Executor:
         self.order = [int(s) for s in plan.stop_sites]
         self.dwell = [int(d) for d in plan.dwell_steps]
         self.max_step_m = float(world.max_step_m)
-        self.steps = int(world.params[K.P_STEPS])
+        self.steps = int(world.named.steps)
         self.full_j = np.asarray(world.capacity, dtype=float) * 1e-12  # the kernel's "full" margin
-        self.needs_energy = bool(world.params[K.P_GAMMA] < 1.0)
+        self.needs_energy = bool(world.named.reward_weight < 1.0)
         model = plan.site_model
         self.adaptive = adaptive and model is not None  # the reactions need the sites' model
         self.linger_steps = linger_steps
@@ -72,7 +72,7 @@ class Executor:
             self.stay_cost = model.stay_cost
         # per site of departure: steps, movement penalty and usability of the route to each site
         n = len(self.sites)
-        move_per_j = float(world.params[K.P_LAMBDA] / world.params[K.P_MOVE_REF])
+        move_per_j = float(world.named.movement_weight / world.named.move_ref_j)
         self.route_steps = np.zeros((n, n), dtype=np.int64)
         self.route_cost = np.zeros((n, n))
         self.route_ok = np.zeros((n, n), dtype=bool)

@@ -48,8 +48,7 @@ def point_model(world: Any, points_m: np.ndarray, *, mean_channel: bool = False)
     np.cumsum(counts, out=cov_ptr[1:])
     params = np.asarray(world.params, dtype=float)
     if mean_channel:
-        params = params.copy()
-        params[K.P_CHANNEL] = K.CHANNEL_CODES["none"]
+        params = K.replace_params(params, channel=K.CHANNEL_CODES["none"])
     tables = K.Tables(
         next_cell=np.repeat(np.arange(m, dtype=np.int64)[:, None], K.N_ACTIONS, axis=1),
         moved=np.zeros((m, K.N_ACTIONS), dtype=bool),
@@ -67,7 +66,7 @@ def point_model(world: Any, points_m: np.ndarray, *, mean_channel: bool = False)
         n_cells=m,
         n_nodes=int(world.n_nodes),
         draws_uniforms=bool(np.any(np.asarray(world.fail_prob) > 0)),
-        normal_rows=int(world.params[K.P_NORMAL_ROWS]),
+        normal_rows=int(world.named.normal_rows),
     )
     return step_model(tables)
 
@@ -110,15 +109,15 @@ def trajectory_return(world: Any, positions_m: np.ndarray, actions: np.ndarray) 
     """
     from swiptopt.continuous import propulsion_energy_j, velocity_of
 
-    p = world.params
+    p = world.named
     model = point_model(world, positions_m[1:])
     data_left = model.data_bits.copy()
     room_left = model.room_j.copy()
     total = 0.0
     for t, action in enumerate(actions):
         velocity = velocity_of(action, world.speed_mps)
-        move_j = propulsion_energy_j(world, positions_m[t], velocity) + p[K.P_HOTEL_J]
-        total -= p[K.P_LAMBDA] * move_j / p[K.P_MOVE_REF]
+        move_j = propulsion_energy_j(world, positions_m[t], velocity) + p.hotel_j
+        total -= p.movement_weight * move_j / p.move_ref_j
         gained = model.serve(t, data_left, room_left)
         total += gained
         if gained > 0.0 and model.all_served(data_left, room_left):

@@ -322,7 +322,7 @@ class TourPlanner:
         """The plan visiting ``order`` (site indices; 0 is the start): legs, the tail that fits
         the episode, dwells from the convex program, and the executor's model return."""
         sites, routes, site_model = network
-        steps_total = int(world.params[K.P_STEPS])
+        steps_total = int(world.named.steps)
         legs: list[Leg] = []
         used = 0
         here = 0
@@ -363,7 +363,7 @@ class TourPlanner:
         from planners.power_split import dwell_steps, stop_inputs
         from swiptopt.continuous import coverage_at
 
-        p = world.params
+        p = world.named
         n = int(world.n_nodes)
         snr = np.zeros((len(points), n))
         pav = np.zeros((len(points), n))
@@ -372,10 +372,10 @@ class TourPlanner:
             nodes = np.asarray(nodes, dtype=np.int64)
             snr[s, nodes] = snr_s
             pav[s, nodes] = pav_s
-        step_s = float(p[K.P_DT])
+        step_s = float(p.dt_s)
         inputs = stop_inputs(self._scenario, snr, pav, mission_time_s=service_steps * step_s)
         steps, result = dwell_steps(inputs, step_s, service_steps, max(service_steps, len(points)),
-                                    split_ratio=float(p[K.P_ALPHA]))
+                                    split_ratio=float(p.split_ratio))
         return steps - 1, result.objective, result.status
 
     def rollout(self, world: Any, plan: ContinuousPlan) -> tuple[np.ndarray, np.ndarray, float]:
@@ -391,14 +391,14 @@ class TourPlanner:
         the first position the one before it lacked, so the runs end.
         """
         _, command, propulsion_j = step_functions()
-        p = world.params
-        steps = int(p[K.P_STEPS])
-        move_weight = float(p[K.P_LAMBDA] / p[K.P_MOVE_REF])
-        hotel_j = float(p[K.P_HOTEL_J])
+        p, named = world.params, world.named
+        steps = int(named.steps)
+        move_weight = named.movement_weight / named.move_ref_j
+        hotel_j = named.hotel_j
         capacity = np.asarray(world.capacity, dtype=float)
         data0 = np.asarray(world.data0, dtype=float)
         room0 = np.maximum(capacity - np.asarray(world.energy0, dtype=float), 0.0)
-        needs_energy = bool(p[K.P_GAMMA] < 1.0)
+        needs_energy = named.reward_weight < 1.0
         data_weight, energy_weight = plan.site_model.data_weight, plan.site_model.energy_weight
         for _ in range(steps + 1):
             executor = self.executor(plan, world)

@@ -93,11 +93,11 @@ def squash(x: np.ndarray) -> np.ndarray:
     return x / (1.0 + x)
 
 
-def node_worth(params: np.ndarray, data_bits: float, capacity_j: float) -> float:
+def node_worth(params: K.Params, data_bits: float, capacity_j: float) -> float:
     """The most one node can be worth in reward (all its data and a full storage), the fixed
     scale of the observation's earnings: Gamma D / D_ref + (1 - Gamma) E_cap / E_ref."""
-    gamma = params[K.P_GAMMA]
-    return float(gamma * data_bits / params[K.P_DATA_REF] + (1.0 - gamma) * capacity_j / params[K.P_ENERGY_REF])
+    gamma = params.reward_weight
+    return float(gamma * data_bits / params.data_ref_bits + (1.0 - gamma) * capacity_j / params.energy_ref_j)
 
 
 def layout_key(scenario: Any) -> str:
@@ -142,8 +142,8 @@ class StopEpisode:
         return int(self.env.scenario.episode_steps) - int(self.env.state.t)
 
     def _unserved(self) -> np.ndarray:
-        s, params = self.env.state, self.layout.params
-        return ~K.served_mask(s.data_left, s.energy, self.layout.capacity, params[K.P_GAMMA])
+        s = self.env.state
+        return ~K.served_mask(s.data_left, s.energy, self.layout.capacity, K.named(self.layout.params).reward_weight)
 
     def earnings(self, steps: int) -> np.ndarray:
         """(n_candidates,) what ``steps`` service steps at each candidate would earn now from the

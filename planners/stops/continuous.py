@@ -303,7 +303,7 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
         sources=sources,
         data_weight=model.data_weight,
         energy_weight=model.energy_weight,
-        worth=node_worth(p, scenario.data_bits, scenario.storage_capacity_j),
+        worth=node_worth(K.named(p), scenario.data_bits, scenario.storage_capacity_j),
         capacity=np.asarray(world.capacity, dtype=float),
         params=p,
         nodes_norm=np.ascontiguousarray(scenario.layout.positions_m / scenario.extent_m),
@@ -351,7 +351,7 @@ class ContinuousMove:
         if self.dwell.until == "data":
             return not bool(np.any(s.data_left[self.covered] > 0.0))
         unserved = ~K.served_mask(s.data_left[self.covered], s.energy[self.covered], w.capacity[self.covered],
-                                  w.params[K.P_GAMMA])
+                                  w.named.reward_weight)
         return not bool(unserved.any())
 
     def next_action(self, env: Any) -> np.ndarray | None:

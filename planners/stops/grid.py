@@ -206,7 +206,7 @@ def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSet
         via_to=via_to,
         data_weight=model.data_weight,
         energy_weight=model.energy_weight,
-        worth=node_worth(p, scenario.data_bits, scenario.storage_capacity_j),
+        worth=node_worth(K.named(p), scenario.data_bits, scenario.storage_capacity_j),
         capacity=tables.capacity,
         params=p,
         cells_norm=np.ascontiguousarray(scenario.cell_centers_m / scenario.extent_m),
@@ -234,7 +234,7 @@ class GridMove:
         if self.dwell.until == "data":
             return not bool(np.any(s.data_left[self.covered] > 0.0))
         unserved = ~K.served_mask(s.data_left[self.covered], s.energy[self.covered], env.tables.capacity[self.covered],
-                                  env.tables.params[K.P_GAMMA])
+                                  env.tables.named.reward_weight)
         return not bool(unserved.any())
 
     def next_action(self, env: Any) -> int | None:

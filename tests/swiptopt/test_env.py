@@ -511,3 +511,19 @@ def test_grid_actions_are_integers_never_truncated_or_parsed():
         assert len(str(info.value)) < 200
     for good in (3, np.int64(2), 4.0, np.array([1])):
         env.step(good)
+
+
+def test_the_named_parameters_are_the_vector_by_name():
+    """Callers read the kernel's scalars by name (K.Params); each name must sit at its P_* index."""
+    tables = K.build_tables(Scenario.preset("paper", n_nodes=6, channel="rician", link="uplink"))
+    named = tables.named
+    assert len(K.Params._fields) == K.N_PARAMS
+    pairs = {"P_DT": "dt_s", "P_ALPHA": "split_ratio", "P_SNR_TH": "snr_threshold", "P_GAMMA": "reward_weight",
+             "P_LAMBDA": "movement_weight", "P_MOVE_REF": "move_ref_j", "P_STEPS": "steps",
+             "P_NORMAL_ROWS": "normal_rows", "P_LINK": "link", "P_PACKET_BITS": "packet_bits"}
+    for index, name in pairs.items():
+        assert K.Params._fields[getattr(K, index)] == name
+        assert getattr(named, name) == tables.params[getattr(K, index)]
+    assert named.link == K.LINK_CODES["uplink"] and named.normal_rows == 2.0
+    changed = K.replace_params(tables.params, drain_j=0.5)
+    assert changed[K.P_DRAIN_J] == 0.5 and tables.params[K.P_DRAIN_J] != 0.5  # a copy
