@@ -234,7 +234,7 @@ class _Stepper:
                     self.normals[j * self.rows : (j + 1) * self.rows] = (b.ok_z[q] if good else b.no_z[q])[: self.rows]
             s = state.copy()
             s.where[K.W_UPTR] = s.where[K.W_ZPTR] = 0
-            code = K.step(action, self.uniforms, self.normals, *K.step_args(t, s))
+            code = K.step(action, self.uniforms, self.normals, K.step_args(t, s))
             self.steps += 1
             out.append((prob, s, float(s.parts.sum()), int(code)))
         return out

@@ -216,7 +216,7 @@ def exact_optimum(
         for value, state, actions in layer.values():
             for a in range(K.N_ACTIONS):
                 s = state.copy()
-                code = step(a, uniforms, normals, *K.step_args(t, s))
+                code = step(a, uniforms, normals, K.step_args(t, s))
                 explored += 1
                 r = float(s.parts[0] + s.parts[1] + s.parts[2])
                 total = value + r

@@ -135,7 +135,7 @@ def replay(tables: K.Tables, actions: list[int], draws: Draws) -> float:
         if rows:
             normals[: len(nodes) * rows] = draws.normals[t, nodes, :rows].ravel()
         state.where[K.W_UPTR] = state.where[K.W_ZPTR] = 0
-        if K.step(int(a), uniforms, normals, *K.step_args(tables, state)) != K.RUNNING:
+        if K.step(int(a), uniforms, normals, K.step_args(tables, state)) != K.RUNNING:
             break
     return float(state.acc[K.A_RETURN])
 

@@ -130,30 +130,29 @@ def choose_action(kind, q, s, epsilon, rng):  # type: ignore[no-untyped-def]
 
 def train_loop(  # type: ignore[no-untyped-def]
     episodes, kind, q, epsilon, epsilon_decay, epsilon_min, learning_rate, discount, agent_rng, env_rng,
-    next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
-    data0, energy0, start_cell, uniforms, normals,
-    where, data_left, energy, delivered, collected, acc, parts, log,
+    arrays, data0, energy0, start_cell, uniforms, normals, log,
 ):
-    """Whole training episodes through the kernel; mirrors ``_train_python`` step by step.
+    """Whole training episodes through the kernel (``arrays``: the tables' and the state's
+    :class:`swiptopt.kernel.StepArrays`); mirrors ``_train_python`` step by step.
 
     Returns epsilon after the last decay.
     """
+    params, where, acc, parts = arrays.params, arrays.where, arrays.acc, arrays.parts
+    data_left, energy = arrays.data_left, arrays.energy
     draw_uniforms = params[K.P_DRAW_UNIFORMS] == 1.0
     rows = int(params[K.P_NORMAL_ROWS])
     gamma = params[K.P_GAMMA]
     sarsa = kind == 2
     for ep in range(episodes):
-        reset_state(start_cell, data0, energy0, params, where, data_left, energy, delivered, collected, acc, parts)
+        reset_state(start_cell, data0, energy0, params, where, data_left, energy, arrays.delivered, arrays.collected,
+                    acc, parts)
         refill = needs_refill(where, data0.shape[0], uniforms.shape[0], normals.shape[0], rows)
-        s = tabular_observation(start_cell, cov_ptr, cov_node, data_left, energy, capacity, gamma)
+        s = tabular_observation(start_cell, arrays.cov_ptr, arrays.cov_node, data_left, energy, arrays.capacity, gamma)
         a = choose_action(kind, q, s, epsilon, agent_rng)
         while True:
             if refill:
                 refill_draws(env_rng, draw_uniforms, rows, uniforms, normals, where)
-            code, s_next, refill = step_tabular(
-                a, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-                capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-            )
+            code, s_next, refill = step_tabular(a, uniforms, normals, arrays)
             reward = parts[0] + parts[1] + parts[2]
             terminated = code == K.TERMINATED
             a_next = 0
@@ -243,10 +242,7 @@ def _train_compiled(agent: Any, env: Any, episodes: int, seed: int | None, log: 
         cfg.epsilon_decay if cfg else 1.0, cfg.epsilon_min if cfg else 1.0,
         cfg.learning_rate if cfg else 1.0, cfg.discount if cfg else 0.0,
         agent.rng_, base.np_random,
-        t.next_cell, t.propulsion_j, t.cov_ptr, t.cov_node, t.cov_snr, t.cov_pav, t.capacity, t.fail_prob,
-        t.params, t.data0, t.energy0, t.start_cell, uniforms, normals,
-        state.where, state.data_left, state.energy, state.delivered, state.collected, state.acc, state.parts,
-        log,
+        K.step_args(t, state), t.data0, t.energy0, t.start_cell, uniforms, normals, log,
     )
     if cfg:
         agent.epsilon_ = float(new_epsilon)

@@ -394,10 +394,10 @@ class AuvSwiptEnv(LayoutEnv):
         if self._refill:
             K.refill_noise(self.np_random, self.tables, self._uniforms, self._normals, self.state.where)
         if self._vector:
-            code, self._refill = self._step_vector(a, self._uniforms, self._normals, *self._args, *self._obs_args)
+            code, self._refill = self._step_vector(a, self._uniforms, self._normals, self._args, *self._obs_args)
             obs = self._obs.copy()  # a fresh array per step: callers may keep observations
         else:
-            code, obs, self._refill = self._step_tabular(a, self._uniforms, self._normals, *self._args)
+            code, obs, self._refill = self._step_tabular(a, self._uniforms, self._normals, self._args)
         throughput, harvest, movement = self.state.parts.tolist()
         self.path.append(self.state.where[0])
         info: dict[str, Any] = {"reward_parts": {"throughput": throughput, "harvest": harvest, "movement": movement}}

@@ -514,66 +514,38 @@ def observation_at(  # type: ignore[no-untyped-def]
         per_node[cov_node[p], 5] = 1.0
 
 
-def step_tabular(  # type: ignore[no-untyped-def]
-    action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-):
+def step_tabular(action, uniforms, normals, arrays):  # type: ignore[no-untyped-def]
     """:func:`step`, then the tabular observation and whether the draw buffers need a
     refill before the next step; returns (code, observation, refill)."""
-    code = step(
-        action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-        capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+    code = step(action, uniforms, normals, arrays)
+    obs = tabular_observation(
+        arrays.where[W_CELL], arrays.cov_ptr, arrays.cov_node, arrays.data_left, arrays.energy, arrays.capacity,
+        arrays.params[P_GAMMA],
     )
-    obs = tabular_observation(where[W_CELL], cov_ptr, cov_node, data_left, energy, capacity, params[P_GAMMA])
     refill = needs_refill(
-        where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS])
+        arrays.where, arrays.capacity.shape[0], uniforms.shape[0], normals.shape[0], int(arrays.params[P_NORMAL_ROWS])
     )
     return code, obs, refill
 
 
-def step_vector(  # type: ignore[no-untyped-def]
-    action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-    data0, cells_norm, nodes_norm, out,
-):
+def step_vector(action, uniforms, normals, arrays, data0, cells_norm, nodes_norm, out):  # type: ignore[no-untyped-def]
     """:func:`step`, then the vector observation into ``out`` (:func:`vector_observation`);
     returns (code, refill) as :func:`step_tabular` does, in one compiled call."""
-    code = step(
-        action, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-        capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-    )
+    code = step(action, uniforms, normals, arrays)
+    where = arrays.where
     vector_observation(
-        where[W_CELL], where[W_T], cov_ptr, cov_node, data_left, energy, data0, capacity, params,
-        cells_norm, nodes_norm, out,
+        where[W_CELL], where[W_T], arrays.cov_ptr, arrays.cov_node, arrays.data_left, arrays.energy, data0,
+        arrays.capacity, arrays.params, cells_norm, nodes_norm, out,
     )
     refill = needs_refill(
-        where, capacity.shape[0], uniforms.shape[0], normals.shape[0], int(params[P_NORMAL_ROWS])
+        where, arrays.capacity.shape[0], uniforms.shape[0], normals.shape[0], int(arrays.params[P_NORMAL_ROWS])
     )
     return code, refill
 
 
-def step(  # type: ignore[no-untyped-def]
-    action,
-    uniforms,
-    normals,
-    next_cell,
-    propulsion_j,
-    cov_ptr,
-    cov_node,
-    cov_snr,
-    cov_pav,
-    capacity,
-    fail_prob,
-    params,
-    where,
-    data_left,
-    energy,
-    delivered,
-    collected,
-    acc,
-    parts,
-):
-    """Advance the episode by one action (SPEC 4); returns RUNNING, TERMINATED or TRUNCATED.
+def step(action, uniforms, normals, arrays):  # type: ignore[no-untyped-def]
+    """Advance the episode by one action (SPEC 4) on ``arrays`` (:class:`StepArrays`) with the
+    step's draws ``uniforms`` and ``normals``; returns RUNNING, TERMINATED or TRUNCATED.
 
     Move (blocked moves stay put and still cost the attempt) -> nodes covered from the new
     cell -> per covered node, with its next draws from the buffers (a failure uniform, the
@@ -593,12 +565,14 @@ def step(  # type: ignore[no-untyped-def]
     The reward's movement part counts propulsion and hotel energy; the projector's energy
     (on in any step with a covered node) is counted in the totals, not the reward.
     """
-    cell = where[W_CELL]
-    new_cell = next_cell[cell, action]
-    where[W_CELL] = new_cell
+    a = arrays
+    cell = a.where[W_CELL]
+    new_cell = a.next_cell[cell, action]
+    a.where[W_CELL] = new_cell
     return serve(
-        propulsion_j[cell, action], cov_ptr[new_cell], cov_ptr[new_cell + 1], uniforms, normals, cov_node, cov_snr,
-        cov_pav, capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
+        a.propulsion_j[cell, action], a.cov_ptr[new_cell], a.cov_ptr[new_cell + 1], uniforms, normals, a.cov_node,
+        a.cov_snr, a.cov_pav, a.capacity, a.fail_prob, a.params, a.where, a.data_left, a.energy, a.delivered,
+        a.collected, a.acc, a.parts,
     )
 
 
@@ -725,25 +699,35 @@ def serve(  # type: ignore[no-untyped-def]
     return RUNNING
 
 
-def step_args(tables: Tables, state: EpisodeState) -> tuple:
-    """The arrays :func:`step` takes after (action, uniforms, normals), in order."""
-    return (
-        tables.next_cell,
-        tables.propulsion_j,
-        tables.cov_ptr,
-        tables.cov_node,
-        tables.cov_snr,
-        tables.cov_pav,
-        tables.capacity,
-        tables.fail_prob,
-        tables.params,
-        state.where,
-        state.data_left,
-        state.energy,
-        state.delivered,
-        state.collected,
-        state.acc,
-        state.parts,
+class StepArrays(NamedTuple):
+    """The arrays one :func:`step` reads and writes, by name: the layout's tables (their
+    per-copy rows in a vector env), then the episode's state. numba takes it as one typed
+    argument (:func:`step_args` makes it from a :class:`Tables` and an :class:`EpisodeState`)."""
+
+    next_cell: np.ndarray
+    propulsion_j: np.ndarray
+    cov_ptr: np.ndarray
+    cov_node: np.ndarray
+    cov_snr: np.ndarray
+    cov_pav: np.ndarray
+    capacity: np.ndarray
+    fail_prob: np.ndarray
+    params: np.ndarray
+    where: np.ndarray
+    data_left: np.ndarray
+    energy: np.ndarray
+    delivered: np.ndarray
+    collected: np.ndarray
+    acc: np.ndarray
+    parts: np.ndarray
+
+
+def step_args(tables: Tables, state: EpisodeState) -> StepArrays:
+    """The arrays :func:`step` takes after (action, uniforms, normals)."""
+    return StepArrays(
+        tables.next_cell, tables.propulsion_j, tables.cov_ptr, tables.cov_node, tables.cov_snr, tables.cov_pav,
+        tables.capacity, tables.fail_prob, tables.params,
+        state.where, state.data_left, state.energy, state.delivered, state.collected, state.acc, state.parts,
     )
 
 

@@ -43,7 +43,7 @@ from swiptopt.env import BACKENDS, INFO_KEY, RESET_OPTIONS, AuvSwiptEnv, check_l
 from swiptopt.env_continuous import AuvSwiptContinuousEnv
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.jit import numba_available
-from swiptopt.kernel import step_tabular, step_vector
+from swiptopt.kernel import StepArrays, step_tabular, step_vector
 from swiptopt.scenario import Scenario
 from swiptopt.worlds import CONTINUOUS, GRID, OBSERVATIONS, check_world
 
@@ -61,40 +61,38 @@ STATE_FIELDS = ("where", "data_left", "energy", "delivered", "collected", "acc",
 # ------------------------------------------------------------------ the compiled loops
 
 
+def _copy_arrays(rows, i):  # type: ignore[no-untyped-def]
+    """Copy i's :class:`swiptopt.kernel.StepArrays`: row i of every per-copy array of ``rows``
+    (whose ``next_cell`` and ``propulsion_j`` are shared: the layout does not change them)."""
+    return StepArrays(
+        rows.next_cell, rows.propulsion_j, rows.cov_ptr[i], rows.cov_node[i], rows.cov_snr[i], rows.cov_pav[i],
+        rows.capacity[i], rows.fail_prob[i], rows.params[i], rows.where[i], rows.data_left[i], rows.energy[i],
+        rows.delivered[i], rows.collected[i], rows.acc[i], rows.parts[i],
+    )
+
+
 def step_grid_copies(  # type: ignore[no-untyped-def]
-    actions, active, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-    data0, cells_norm, nodes_norm, out, codes, refills,
+    actions, active, uniforms, normals, rows, data0, cells_norm, nodes_norm, out, codes, refills,
 ):
-    """:func:`swiptopt.kernel.step_vector` on row i of every per-copy array, for each copy
-    with ``active[i]``; its return code and refill flag into ``codes[i]``, ``refills[i]``.
-    ``next_cell``, ``propulsion_j`` and ``cells_norm`` are shared (the layout does not
-    change them)."""
+    """:func:`swiptopt.kernel.step_vector` on copy i's arrays (:func:`_copy_arrays` of
+    ``rows``, a :class:`~swiptopt.kernel.StepArrays` of per-copy rows), for each copy with
+    ``active[i]``; its return code and refill flag into ``codes[i]``, ``refills[i]``.
+    ``cells_norm`` is shared."""
     for i in range(actions.shape[0]):
         if active[i]:
             code, refill = step_vector(
-                actions[i], uniforms[i], normals[i], next_cell, propulsion_j, cov_ptr[i], cov_node[i], cov_snr[i],
-                cov_pav[i], capacity[i], fail_prob[i], params[i], where[i], data_left[i], energy[i], delivered[i],
-                collected[i], acc[i], parts[i], data0[i], cells_norm, nodes_norm[i], out[i],
+                actions[i], uniforms[i], normals[i], _copy_arrays(rows, i), data0[i], cells_norm, nodes_norm[i], out[i],
             )
             codes[i] = code
             refills[i] = refill
 
 
-def step_grid_tabular_copies(  # type: ignore[no-untyped-def]
-    actions, active, uniforms, normals, next_cell, propulsion_j, cov_ptr, cov_node, cov_snr, cov_pav,
-    capacity, fail_prob, params, where, data_left, energy, delivered, collected, acc, parts,
-    out, codes, refills,
-):
+def step_grid_tabular_copies(actions, active, uniforms, normals, rows, out, codes, refills):  # type: ignore[no-untyped-def]
     """:func:`step_grid_copies` with :func:`swiptopt.kernel.step_tabular`: the tabular
     observation of copy i into ``out[i]``."""
     for i in range(actions.shape[0]):
         if active[i]:
-            code, obs, refill = step_tabular(
-                actions[i], uniforms[i], normals[i], next_cell, propulsion_j, cov_ptr[i], cov_node[i], cov_snr[i],
-                cov_pav[i], capacity[i], fail_prob[i], params[i], where[i], data_left[i], energy[i], delivered[i],
-                collected[i], acc[i], parts[i],
-            )
+            code, obs, refill = step_tabular(actions[i], uniforms[i], normals[i], _copy_arrays(rows, i))
             out[i] = obs
             codes[i] = code
             refills[i] = refill
@@ -121,7 +119,7 @@ def step_continuous_copies(  # type: ignore[no-untyped-def]
             refills[i] = refill
 
 
-_FUNCTIONS = ("step_grid_copies", "step_grid_tabular_copies", "step_continuous_copies")
+_FUNCTIONS = ("_copy_arrays", "step_grid_copies", "step_grid_tabular_copies", "step_continuous_copies")
 _COMPILED: dict[str, Callable] = {}
 
 
@@ -249,13 +247,13 @@ class _GridCopies(_Copies):
         self.nodes_norm[i] = s.layout.positions_m / s.extent_m  # as AuvSwiptEnv computes it
 
     def args(self) -> tuple:
-        head = (
+        rows = StepArrays(
             self.next_cell, self.propulsion_j, self.cov_ptr, self.cov_node, self.cov_snr, self.cov_pav,
             self.capacity, self.fail_prob, self.params, *(getattr(self, f) for f in STATE_FIELDS),
         )
         if self.vector:
-            return (*head, self.data0, self.cells_norm, self.nodes_norm, self.obs, self.codes, self.refills)
-        return (*head, self.obs, self.codes, self.refills)
+            return (rows, self.data0, self.cells_norm, self.nodes_norm, self.obs, self.codes, self.refills)
+        return (rows, self.obs, self.codes, self.refills)
 
 
 class _ContinuousCopies(_Copies):

@@ -54,7 +54,7 @@ def test_the_amounts_are_the_kernels_first_step_uncapped():
         nodes = tables.covered(cell)
         state.where[K.W_UPTR] = state.where[K.W_ZPTR] = 0
         K.step(K.HOVER, draws.uniforms[0, nodes].copy(), draws.normals[0, nodes, :2].ravel().copy(),
-               *K.step_args(tables, state))
+               K.step_args(tables, state))
         pairs = np.arange(tables.cov_ptr[cell], tables.cov_ptr[cell + 1])
         assert np.array_equal(state.collected[nodes], bits[0, pairs])
         assert np.array_equal(state.delivered[nodes], joules[0, pairs])

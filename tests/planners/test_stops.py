@@ -93,7 +93,7 @@ def one_step_value(scenario, cell):
     state.where[K.W_CELL] = cell
     uniforms, normals = K.noise_buffers(tables)
     K.refill_noise(np.random.default_rng(0), tables, uniforms, normals, state.where)
-    K.step(K.HOVER, uniforms, normals, *K.step_args(tables, state))
+    K.step(K.HOVER, uniforms, normals, K.step_args(tables, state))
     p = tables.params
     return (p[K.P_GAMMA] * state.collected / p[K.P_DATA_REF]
             + (1 - p[K.P_GAMMA]) * state.delivered / p[K.P_ENERGY_REF])
