@@ -762,12 +762,15 @@ def _said(exc: BaseException) -> str:
 
 def _is_factory(obj: Any, module_name: str) -> bool:
     """Whether ``obj`` may be called as a plugin's factory: a plain Python function defined
-    in the module the source names (not a builtin such as ``os.abort`` or ``sys.exit``, not
-    a class, not a function another module defines), callable without arguments. Decided
-    without calling it."""
+    in the module the source names or in one of its submodules (a package re-exporting its
+    factory), callable without arguments; not a builtin such as ``os.abort`` or
+    ``sys.exit``, not a class, not a function another module defines. Decided without
+    calling it."""
     import inspect
 
-    if not inspect.isfunction(obj) or getattr(obj, "__module__", None) != module_name:
+    defined_in = getattr(obj, "__module__", None)
+    if not inspect.isfunction(obj) or not isinstance(defined_in, str) or not (
+            defined_in == module_name or defined_in.startswith(module_name + ".")):
         return False
     try:
         inspect.signature(obj).bind()
@@ -783,7 +786,8 @@ def load_plugin(name: str, source: Any, where: str = "") -> Algorithm:
     than an :class:`Algorithm`) is a :class:`ConfigError` naming ``where``.
 
     This imports the module and calls the factory: the plugin's code runs in this process.
-    Only a plain function defined in that module and taking no arguments is called (or an
+    Only a plain function defined in that module (or a submodule) and taking no arguments
+    is called (or an
     :class:`Algorithm` it holds is taken); anything else (``os:abort``, ``sys:exit``, a
     class) is refused without being called. Whatever the plugin's code raises, ``SystemExit``
     and ``KeyboardInterrupt`` included, becomes a :class:`ConfigError`. Callers decide

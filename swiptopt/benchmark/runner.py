@@ -230,12 +230,13 @@ def run_isolated(task: dict[str, Any]) -> dict[str, Any]:
 
 def run_outcome(task: dict[str, Any]) -> dict[str, Any]:
     """Run one task here (in a fresh process if it uses OMPL); an exception becomes a
-    failure record (``"error"``, ``"detail"``) instead of stopping the run."""
+    failure record (``"error"``, ``"detail"``) instead of stopping the run, and so does a
+    ``SystemExit`` that an algorithm's code raises."""
     if uses_ompl(task):
         return run_isolated(task)
     try:
         return run_task(task)
-    except Exception as exc:  # recorded with its traceback; the run goes on
+    except (Exception, SystemExit) as exc:  # recorded with its traceback; the run goes on
         return _failure(task, one_line(exc), traceback.format_exc())
 
 

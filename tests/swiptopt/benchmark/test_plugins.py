@@ -62,6 +62,13 @@ HOVER = textwrap.dedent('''
         raise SystemExit(0)
 
 
+    def exits_in_build():
+        def build(env, settings, seed, context):
+            raise SystemExit(0)
+
+        return Algorithm("ignored", "exits", "planner", {}, build)
+
+
     def interrupted():
         raise KeyboardInterrupt
 
@@ -149,6 +156,17 @@ def test_only_a_function_of_the_named_module_is_called_as_a_factory(tmp_path, pl
             load_plugin("x", source)
 
 
+def test_a_package_may_re_export_its_factory(tmp_path, plugin):
+    package = tmp_path / "swiptopt_test_package"
+    package.mkdir()
+    (package / "__init__.py").write_text("from swiptopt_test_package.factories import hover\n", encoding="utf-8")
+    (package / "factories.py").write_text("from swiptopt_test_hover import hover as made\n\n\n"
+                                          "def hover():\n    return made()\n", encoding="utf-8")
+    assert load_plugin("x", "swiptopt_test_package:hover").label == "always hover"
+    with pytest.raises(ConfigError, match="is not a factory"):  # defined elsewhere, imported here
+        load_plugin("y", "swiptopt_test_package.factories:made")
+
+
 @pytest.mark.parametrize("source, words", [
     ("swiptopt_test_exits_on_import:hover", "cannot import 'swiptopt_test_exits_on_import' (SystemExit: 3)"),
     ("swiptopt_test_hover:exits", "the factory failed (SystemExit: 0)"),
@@ -170,13 +188,14 @@ def test_whatever_a_plugin_raises_is_one_line_and_exit_2(tmp_path, plugin, capsy
     assert words in line and not store.exists()
 
 
-def test_a_plugin_that_crashes_in_native_code_loses_only_its_tasks(tmp_path, plugin):
-    path = write_toml(tmp_path / "e.toml", {"boom": "swiptopt_test_hover:crash"})
+@pytest.mark.parametrize("factory, reason", [("crash", "SIGSEGV"), ("exits_in_build", "SystemExit: 0")])
+def test_a_plugin_that_crashes_or_exits_loses_only_its_tasks(tmp_path, plugin, factory, reason):
+    path = write_toml(tmp_path / "e.toml", {"boom": f"swiptopt_test_hover:{factory}"})
     store = tmp_path / "s.sqlite"
     result = cli("run", str(path), "--store", str(store), "--workers", "1", "--allow-plugins", "--format", "markdown",
                  pythonpath=tmp_path)
     assert result.returncode == 1, result.stderr  # as for any failed task
-    assert "2 tasks failed" in result.stderr and "SIGSEGV" in result.stderr
+    assert "2 tasks failed" in result.stderr and reason in result.stderr
     assert "| random |" in result.stdout
     with ResultStore(store, readonly=True) as s:
         stored = s.get(s.keys())
