@@ -110,7 +110,8 @@ def _report_failures(console, failures) -> None:  # type: ignore[no-untyped-def]
     """How many tasks failed and why, most common reason first."""
     if not failures:
         return
-    console.print(f"{len(failures)} task{'s' * (len(failures) != 1)} failed (recorded in the store; a rerun retries them):")
+    tasks = f"{len(failures)} task{'s' * (len(failures) != 1)}"
+    console.print(f"{tasks} failed (recorded in the store; a rerun retries them):")
     for reason, count in Counter(f.reason for f in failures).most_common():
         console.print(f"  {count} x {reason}", markup=False, highlight=False)
 
@@ -168,7 +169,15 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     it finishes (``caption``: each under its name and world, also in
     the text formats), and write them all to ``output``."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TaskID,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
@@ -190,7 +199,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
             ) as progress:
                 bar = progress.add_task(experiment.name, total=None)
 
-                def update(done: int, todo: int) -> None:
+                def update(done: int, todo: int, progress: Progress = progress, bar: TaskID = bar) -> None:
                     progress.update(bar, completed=done, total=todo)
 
                 report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update,
@@ -459,8 +468,10 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
     with ResultStore(store_path, readonly=True) as store:
         experiments = store.experiments(name)
         if not experiments:
-            raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}", "experiment")
-        text = "\n".join(_print_table(experiment, store, fmt, caption=len(experiments) > 1) for experiment in experiments)
+            raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}",
+                              "experiment")
+        caption = len(experiments) > 1
+        text = "\n".join(_print_table(experiment, store, fmt, caption=caption) for experiment in experiments)
     if output:
         _write_output(output, text)
 

@@ -51,9 +51,10 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from planners.bounds import MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP
 from planners.optimal import BUDGETS
@@ -556,9 +557,10 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
     """
     settings = {**_DEEP_COMMON, **(settings or {})}
     rollout = "n_steps" in settings
+    sized = rollout or "buffer_size" in settings
     return Algorithm(name or label.lower(), label, "rl", settings, _deep(sb3), _deep_record, observation="vector",
                      modules=("torch",), trains_model=True, worlds=worlds, trained_model=_deep_model(sb3),
-                     check_scenario=_check_deep_sizes(name or label.lower(), rollout) if rollout or "buffer_size" in settings else None)
+                     check_scenario=_check_deep_sizes(name or label.lower(), rollout) if sized else None)
 
 
 #: The stop-choice environment's settings the benchmark exposes, by world.
@@ -661,7 +663,8 @@ ALGORITHMS: dict[str, Algorithm] = {
                 "tsp_method": Setting(default="auto", kind="str", choices=("auto", "exact", "routing"),
                                       doc="TSP solver (coverage selection, or tours over 12 stops)"),
                 "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
-                                            doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
+                                            doc="TSP wall-clock safety net (the search stops on a deterministic "
+                                                "budget)"),
                 "tour_costs": Setting(default="auto", kind="str", choices=("auto", "euclidean", "grid", "ompl"),
                                       doc="costs between stops (coverage selection, or tours over 12 stops)"),
                 "ompl_time_limit_s": Setting(default=0.2, lo=0, lo_open=True, hi=600, unit="s", quick=0.05,
@@ -687,7 +690,8 @@ ALGORITHMS: dict[str, Algorithm] = {
         ),
         Algorithm(
             "greedy", "greedy", "planner",
-            {"max_dwell_steps": Setting(default=8, kind="int", lo=1, hi=_STEPS, doc="hover steps before giving up on a node")},
+            {"max_dwell_steps": Setting(default=8, kind="int", lo=1, hi=_STEPS,
+                                        doc="hover steps before giving up on a node")},
             _planner("GreedyPlanner"),
         ),
         Algorithm("rate_greedy", "rate-greedy", "planner", {}, _planner("RateGreedyPlanner")),

@@ -97,7 +97,6 @@ from typing import Any
 from swiptopt.benchmark.algorithms import (
     ACROSS_LAYOUTS,
     ALGORITHMS,
-    PER_LAYOUT as PER_LAYOUT_TRAINING,
     EXPANSION_SETTINGS,
     TRAINING,
     TRAINING_SEEDS,
@@ -109,22 +108,22 @@ from swiptopt.benchmark.algorithms import (
     quick_settings,
     resolve_settings,
 )
+from swiptopt.benchmark.algorithms import PER_LAYOUT as PER_LAYOUT_TRAINING
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size
-from swiptopt.tomlfile import read_toml
-from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.scenario import Scenario, ScenarioError
+from swiptopt.tomlfile import read_toml
+from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.worlds import CONTINUOUS, GRID, check_world
-
 
 #: Evaluation seeds of a task start this far from its training seed.
 EVALUATION_OFFSET = 1_000_003
 #: Task seeds of one layout: layout L's tasks have seeds SEEDS_PER_LAYOUT * L + 0, 1, ...
 SEEDS_PER_LAYOUT = 1000
 
-TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure", "baseline",
-            "training_layouts", "plugins", "world", "budgets"}
+TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure",
+            "baseline", "training_layouts", "plugins", "world", "budgets"}
 #: The setting a learning curve's budgets set.
 BUDGET_SETTING = "timesteps"
 #: The most budgets one algorithm's curve may list.
@@ -243,14 +242,30 @@ class Experiment:
             raise ConfigError("scenario.layout_seed cannot be set: layouts are set by 'layouts'", "layout_seed")
         if "world" in scenario:
             _misplaced_world("scenario.world")
+        resolved = self._check_algorithms()
+        self._check_training_layouts(resolved)
+        self._check_budgets()
+        if self.baseline and self.baseline not in resolved:
+            raise ConfigError(
+                f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(resolved)})",
+                "baseline",
+            )
+        self._check_sweep()
+        self._check_figure()
+        self._check_sizes(resolved)
+        self._check_points(resolved)
+
+    def _check_algorithms(self) -> dict[str, dict[str, Any]]:
+        """Check the plugins (loading those not taken as recorded) and the algorithms: their
+        settings and worlds; returns each algorithm's resolved settings."""
         plugins = check_keys("[plugins]", self.plugins, "plugins")
         algorithms = check_keys("[algorithms]", self.algorithms, "algorithms")
         if not algorithms:
             raise ConfigError("an experiment needs at least one algorithm in [algorithms]", "algorithms")
         unused = sorted(set(plugins) - set(algorithms))
         if unused:
-            raise ConfigError(f"plugins.{unused[0]} is registered but not run: add [algorithms.{unused[0]}] or remove it",
-                              "plugins")
+            raise ConfigError(f"plugins.{unused[0]} is registered but not run: add [algorithms.{unused[0]}] or "
+                              "remove it", "plugins")
         for name, source in plugins.items():
             if name not in self.recorded_settings:
                 load_plugin(name, source)
@@ -262,15 +277,10 @@ class Experiment:
         for name in algorithms:
             if name not in self.recorded_settings:
                 check_world_of(name, self.world)
-        self._check_training_layouts(resolved)
-        self._check_budgets()
-        if self.baseline and self.baseline not in algorithms:
-            raise ConfigError(
-                f"baseline = {self.baseline!r} is not one of the experiment's algorithms ({', '.join(algorithms)})",
-                "baseline",
-            )
-        self._check_sweep()
-        self._check_figure()
+        return resolved
+
+    def _check_sizes(self, resolved: dict[str, dict[str, Any]]) -> None:
+        """The number of tasks and of evaluation episodes against :mod:`swiptopt.limits`."""
         n_points = math.prod(len(v) for v in self.sweep.values())
         n_layouts = len(self.layout_seeds())
         runs = sum(self.seeds_of(settings) * len(self.budgets.get(name, [None])) for name, settings in resolved.items())
@@ -282,8 +292,11 @@ class Experiment:
         )
         check_size("max_evaluation_episodes", n_tasks * self.episodes,
                    f"evaluation episodes ({n_tasks:,} tasks x episodes = {self.episodes:,})", "episodes")
-        # every scenario of the sweep now, so a bad value fails before any work; a point
-        # that resolves to the same scenario as another would be counted twice
+
+    def _check_points(self, resolved: dict[str, dict[str, Any]]) -> None:
+        """Every scenario of the sweep now, so a bad value fails before any work, with each
+        algorithm's settings there; a point that resolves to the same scenario as another
+        would be counted twice."""
         keys = list(self.sweep)
         seen: dict[str, tuple[int, ...]] = {}
         for index in itertools.product(*(range(len(self.sweep[k])) for k in keys)):
@@ -297,7 +310,8 @@ class Experiment:
             if fingerprint in seen:
                 key, i, j = next((k, i, j) for k, i, j in zip(keys, seen[fingerprint], index) if i != j)
                 a, b = self.sweep[key][i], self.sweep[key][j]
-                same = f"lists {a!r} twice" if repr(a) == repr(b) else f"lists {a!r} and {b!r}, which give the same scenario"
+                same = (f"lists {a!r} twice" if repr(a) == repr(b)
+                        else f"lists {a!r} and {b!r}, which give the same scenario")
                 raise ConfigError(f"sweep.{key} {same}: remove the duplicate", key)
             seen[fingerprint] = index
 
@@ -368,7 +382,10 @@ class Experiment:
         budgets has a row per budget."""
         out = []
         for name in self.algorithms:
-            out += [(budget_row(name, b), name, b) for b in self.budgets[name]] if name in self.budgets else [(name, name, None)]
+            if name in self.budgets:
+                out += [(budget_row(name, b), name, b) for b in self.budgets[name]]
+            else:
+                out.append((name, name, None))
         return out
 
     def layout_seeds(self) -> tuple[int, ...]:
@@ -461,12 +478,14 @@ class Experiment:
                 raise ConfigError(f"figure.{key} = {value!r} must be a string", key)
         metric = figure.get("metric")
         if metric is not None and metric not in EPISODE_METRICS:
-            raise ConfigError(f"figure.metric = {metric!r} is not a metric: choose one of {', '.join(EPISODE_METRICS)}", "metric")
+            raise ConfigError(f"figure.metric = {metric!r} is not a metric: choose one of "
+                              f"{', '.join(EPISODE_METRICS)}", "metric")
         if figure and not self.sweep:
             raise ConfigError("[figure] needs a [sweep]: a figure draws a metric against a swept value", "figure")
         x = figure.get("x")
         if x is not None and x not in self.sweep:
-            raise ConfigError(f"figure.x = {x!r} is not swept: choose one of the sweep's keys ({', '.join(self.sweep)})", "x")
+            raise ConfigError(f"figure.x = {x!r} is not swept: choose one of the sweep's keys "
+                              f"({', '.join(self.sweep)})", "x")
 
     # ------------------------------------------------------------ construction
 
@@ -714,11 +733,13 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
 ACROSS_BUDGETS = {
     "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2],
              "stop_ppo": _doubled(_STOP_CURVE)},
-    "harbour": {"ppo": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2], "sac": _doubled(_SAC_CURVE) + [4 * _SAC_CURVE[-1]],
+    "harbour": {"ppo": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2],
+                "sac": _doubled(_SAC_CURVE) + [4 * _SAC_CURVE[-1]],
                 "stop_ppo": _doubled(_STOP_CURVE)},
 }
 COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}
-_COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"} for name, steps in COMPARE_DEEP_TIMESTEPS.items()}
+_COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"}
+                 for name, steps in COMPARE_DEEP_TIMESTEPS.items()}
 #: The harbour suite: the continuous world on the harbour preset (a pier, a moored hull, a
 #: wreck, a sloping seabed and a current), where straight lines are wrong.
 _HARBOUR_LAYOUTS = 8
@@ -989,7 +1010,7 @@ def paper_figures(link: str | None = None) -> list[Experiment]:
         ),
         _builtin(
             "fig-steps-to-energy-target",
-            f"steps to deliver half of the energy the coverable nodes can store, against the number of nodes, "
+            "steps to deliver half of the energy the coverable nodes can store, against the number of nodes, "
             "Gamma = 0, alpha = 0",
             scenario=energy, **common, figure={"metric": "steps_to_energy_target", "x": "n_nodes"},
         ),

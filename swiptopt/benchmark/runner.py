@@ -46,9 +46,10 @@ import os
 import time
 import traceback
 from collections import deque
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from swiptopt.benchmark.experiment import EVALUATION_OFFSET, Experiment, Task
 from swiptopt.benchmark.processes import (
@@ -313,14 +314,16 @@ def _check_scheduler(scheduler: str, limit: int) -> None:
     try:
         scheme, location = parse_address(scheduler, strict=False)
     except (ValueError, TypeError) as exc:
-        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
+        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}",
+                          "scheduler") from None
     if scheme not in DASK_SCHEMES:
         raise ConfigError(f"--scheduler {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
                           "scheduler")
     try:
         host, port = parse_host_port(location)
     except (ValueError, TypeError) as exc:
-        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}", "scheduler") from None
+        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}",
+                          "scheduler") from None
     if not host or not 1 <= port <= 65535:
         raise ConfigError(f"--scheduler {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
 
@@ -340,7 +343,8 @@ def _isolated(tasks: list[dict[str, Any]], workers: int) -> Iterator[list[dict[s
             yield [future.result()]
 
 
-def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
+def _local(batches: list[list[dict[str, Any]]], workers: int,
+           modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
     """Batches on ``workers`` local processes (one too: a native crash must not end the run)."""
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -381,7 +385,8 @@ def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str
 
 
 def _staged(stages: list[list[list[dict[str, Any]]]],
-            run: Callable[[list[list[dict[str, Any]]]], Iterator[list[dict[str, Any]]]]) -> Iterator[list[dict[str, Any]]]:
+            run: Callable[[list[list[dict[str, Any]]]],
+                          Iterator[list[dict[str, Any]]]]) -> Iterator[list[dict[str, Any]]]:
     """The outcomes of each stage's batches, one stage run to its end before the next."""
     for batches in stages:
         yield from run(batches)
@@ -519,7 +524,8 @@ def _lineage_of(task: Task) -> tuple[Any, ...] | None:
 
     settings = {k: v for k, v in task.settings.items() if k != "timesteps"}
     if task.training_layouts is None:
-        return (task.algorithm, task.plugin, task.world, json.dumps([task.scenario, settings], sort_keys=True), task.seed)
+        return (task.algorithm, task.plugin, task.world, json.dumps([task.scenario, settings], sort_keys=True),
+                task.seed)
     scenario = {k: v for k, v in task.scenario.items() if k != "layout_seed"}
     return (task.algorithm, task.plugin, task.world, json.dumps([scenario, settings], sort_keys=True),
             task.seed % SEEDS_PER_LAYOUT, tuple(task.training_layouts))
@@ -549,7 +555,8 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
     followers: list[Task] = []
     for members in lineages.values():
         members = sorted(members, key=lambda t: -int(t.settings.get("timesteps", 0)))
-        budgets = sorted({int(t.settings.get("timesteps", 0)) for t in members[1:]} - {int(members[0].settings.get("timesteps", 0))})
+        longest = int(members[0].settings.get("timesteps", 0))
+        budgets = sorted({int(t.settings.get("timesteps", 0)) for t in members[1:]} - {longest})
         trainers.append({**members[0].to_dict(), **extra, CHECKPOINTS: budgets})
         followers += members[1:]
     trainers.sort(key=lambda d: -int(d["settings"].get("timesteps", 0)))

@@ -32,9 +32,10 @@ import platform
 import re
 import sqlite3
 import time
+from collections.abc import Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any
 from urllib.parse import quote
 
 from swiptopt.errors import ConfigError
@@ -265,8 +266,8 @@ class ResultStore:
             if not os.access(self.path, os.R_OK | os.W_OK):
                 raise StoreError(self.path, "is read-only here; 'swiptopt table' and 'swiptopt plot' can read it")
             if not os.access(self.path.parent, os.W_OK | os.X_OK):
-                raise StoreError(self.path, f"cannot be written: its directory {str(self.path.parent)!r} is not writable "
-                                            "(SQLite keeps its write-ahead log beside the file)")
+                raise StoreError(self.path, f"cannot be written: its directory {str(self.path.parent)!r} is not "
+                                            "writable (SQLite keeps its write-ahead log beside the file)")
         self._check_header()
         self._db = self._connect()
         try:

@@ -55,10 +55,10 @@ import numpy as np
 
 from planners.bounds import ADAPTIVE, LP_EXPECTED_NAME, MILP_NAME, UPPER_NAME, PolicyBound
 from swiptopt.benchmark.algorithms import labels
-from swiptopt.evaluation import Summary
 from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment, budget_row
-from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.evaluation import Summary
+from swiptopt.metrics import EPISODE_METRICS
 
 #: Extra columns beyond the episode metrics.
 GAP_BOUND = "gap_to_bound"
@@ -108,7 +108,8 @@ class Row:
 
 
 def _task_mean(records: list[dict[str, Any]], metric: str) -> float | None:
-    values = [r[metric] for r in records if r[metric] is not None and not (isinstance(r[metric], float) and math.isnan(r[metric]))]
+    values = [r[metric] for r in records
+              if r[metric] is not None and not (isinstance(r[metric], float) and math.isnan(r[metric]))]
     return float(np.mean(values)) if values else None
 
 
@@ -211,7 +212,8 @@ def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], in
             found = list(by_seed.values())
             if not found:
                 continue
-            per_metric: dict[str, list[Any]] = {m: [_task_mean(r["records"], m) for r in found] for m in EPISODE_METRICS}
+            per_metric: dict[str, list[Any]] = {m: [_task_mean(r["records"], m) for r in found]
+                                                for m in EPISODE_METRICS}
             gaps, optimum_gaps, used = [], [], []
             for seed, r in by_seed.items():
                 ret = _task_mean(r["records"], "return")
@@ -518,11 +520,13 @@ def to_csv(rows: list[Row]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf)
     keys = sorted({k for r in rows for k in r.point})
-    writer.writerow(keys + ["algorithm", "rank", "metric", "mean", "ci95", "min", "max", "n", "missing", "bound", "notes"])
+    writer.writerow(keys + ["algorithm", "rank", "metric", "mean", "ci95", "min", "max", "n", "missing", "bound",
+                            "notes"])
     for r in rows:
         for metric, s in r.summaries.items():
             writer.writerow([r.point.get(k) for k in keys]
-                            + [r.algorithm, r.rank, metric, s.mean, s.ci95, s.min, s.max, s.n, s.missing, r.bound, r.notes])
+                            + [r.algorithm, r.rank, metric, s.mean, s.ci95, s.min, s.max, s.n, s.missing, r.bound,
+                               r.notes])
     return buf.getvalue()
 
 

@@ -71,7 +71,7 @@ def test_run_help_and_list_name_every_builtin_experiment(capsys):
     for args in (["run", "--help"], ["run", "--list"]):
         assert main(args) == 0
         out = capsys.readouterr().out
-        for name, experiment in builtins.items():
+        for name in builtins:
             assert name in out, f"{args}: {name} not listed"
     # --list prints exactly one line per experiment, name first, with its description
     assert main(["run", "--list"]) == 0

@@ -8,12 +8,12 @@ import time
 import numpy as np
 import pytest
 
-from swiptopt.cli import main
-from swiptopt.errors import ConfigError
+from swiptopt.benchmark import tables
 from swiptopt.benchmark.experiment import Experiment, builtin_experiments, load_experiment
 from swiptopt.benchmark.runner import execute
 from swiptopt.benchmark.store import ResultStore
-from swiptopt.benchmark import tables
+from swiptopt.cli import main
+from swiptopt.errors import ConfigError
 
 QUICK_TOML = """
 name = "smoke"
@@ -55,7 +55,8 @@ def test_experiment_expansion_and_keys(tmp_path):
     assert len({t.key for t in tasks}) == len(tasks)
     again = Experiment.from_toml(write(tmp_path, QUICK_TOML.replace('"smoke"', '"renamed"'), "b.toml"))
     assert [t.key for t in again.tasks()] == [t.key for t in tasks]  # the name is not part of the key
-    changed = Experiment.from_toml(write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 301"), "c.toml"))
+    changed = Experiment.from_toml(write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 301"),
+                                         "c.toml"))
     assert [t.key for t in changed.tasks()] != [t.key for t in tasks]
     # every figure experiment of the paper has at least 20 layouts per point
     for name, e in builtin_experiments().items():
@@ -125,10 +126,12 @@ def test_quick_sweep_end_to_end(tmp_path, capsys):
 
 
 def test_killed_run_resumes_without_duplicates(tmp_path):
-    exp_path = write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 200").replace("layouts = 2", "layouts = 8"))
+    exp_path = write(tmp_path, QUICK_TOML.replace("train_episodes = 300", "train_episodes = 200")
+                     .replace("layouts = 2", "layouts = 8"))
     store = tmp_path / "kill.sqlite"
     expected = {t.key for t in Experiment.from_toml(exp_path).tasks()}
-    proc = subprocess.Popen([sys.executable, "-m", "swiptopt.cli", "run", str(exp_path), "--store", str(store), "--workers", "1"],
+    proc = subprocess.Popen([sys.executable, "-m", "swiptopt.cli", "run", str(exp_path), "--store", str(store),
+                             "--workers", "1"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + 120  # a wait limit for the polling loop, not a speed check
     stored = 0
@@ -172,7 +175,8 @@ def test_builtin_lookup():
     optimum = builtins["optimum"]
     assert set(optimum.algorithms) == planners_and_agents | {"milp"}
     assert optimum.algorithms["milp"] == {"budget": "default"} and optimum.layouts == 10
-    assert (optimum.scenario["n_nodes"], optimum.scenario["channel"], optimum.scenario["failure_prob_max"]) == (25, "none", 0)
+    scenario = optimum.scenario
+    assert (scenario["n_nodes"], scenario["channel"], scenario["failure_prob_max"]) == (25, "none", 0)
     # the figures' sweeps run every algorithm but the MILP
     for e in builtins.values():
         if e.figure:
@@ -239,7 +243,8 @@ def test_paper_figures_use_the_papers_reward_extremes_and_either_link():
         s = by_name[name].scenario_for({"n_nodes": 10}, 0)
         assert (s.reward_weight, s.split_ratio) == (0.0, 0.0), name
     # the efficiency readings share their tasks: one run serves the four figures
-    keys = {name: [t.key for t in by_name[name].tasks()] for name in ("fig-efficiency-vs-nodes", "fig-mobility-efficiency-vs-nodes")}
+    keys = {name: [t.key for t in by_name[name].tasks()]
+            for name in ("fig-efficiency-vs-nodes", "fig-mobility-efficiency-vs-nodes")}
     assert keys["fig-efficiency-vs-nodes"] == keys["fig-mobility-efficiency-vs-nodes"]
     uplink = paper_figures("uplink")
     assert uplink and all(e.name.endswith("-uplink") for e in uplink)

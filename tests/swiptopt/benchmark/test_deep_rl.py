@@ -242,7 +242,8 @@ PLUGIN = textwrap.dedent('''
 
 
     def a2c():
-        return sb3_algorithm("stable_baselines3:A2C", "A2C", {"n_steps": Setting(default=5, kind="int", lo=1, hi=10_000)})
+        return sb3_algorithm("stable_baselines3:A2C", "A2C",
+                             {"n_steps": Setting(default=5, kind="int", lo=1, hi=10_000)})
 
 
     def broken():

@@ -123,7 +123,8 @@ def test_schema_agrees_with_what_the_algorithms_accept():
     for name in ("q_learning", "sarsa", "random"):
         assert set(ALGORITHMS[name].settings["backend"].choices) == set(BACKENDS)
     # the tabular settings: same defaults, and what the schema refuses TabularConfig refuses
-    for key in ("learning_rate", "discount", "epsilon_start", "epsilon_decay", "epsilon_min", "replay_size", "replay_batch"):
+    for key in ("learning_rate", "discount", "epsilon_start", "epsilon_decay", "epsilon_min", "replay_size",
+                "replay_batch"):
         spec = ALGORITHMS["q_learning"].settings[key]
         assert getattr(TabularConfig(), key) == spec.default
         for value in (spec.lo - 0.1, spec.hi + 0.1) + ((spec.lo,) if spec.lo_open else ()):
@@ -218,7 +219,8 @@ def test_safe_names_are_accepted():
     "fields, field, words",
     [
         ({"figure": {"metric": "return"}}, "figure", ["needs a [sweep]"]),
-        ({"figure": {"x": "split_ratio"}, "sweep": {"n_nodes": [2, 3]}}, "x", ["'split_ratio' is not swept", "n_nodes"]),
+        ({"figure": {"x": "split_ratio"}, "sweep": {"n_nodes": [2, 3]}}, "x",
+         ["'split_ratio' is not swept", "n_nodes"]),
         ({"figure": {"title": 3}, "sweep": {"n_nodes": [2, 3]}}, "title", ["figure.title = 3"]),
         ({"scenario": {"preset": "tiny", "layout_seed": 3}}, "layout_seed", ["layouts"]),
         ({"scenario": {"preset": "tiny", 3: 1}}, "scenario", ["key 3"]),
@@ -371,7 +373,8 @@ def unescaped(line, char):
 
 def test_latex_escapes_every_cell_and_heading(tmp_path):
     hostile = [r"\input{/etc/hostname}", "a & b", "50% #1 $x$ ^_~{} <|>"]
-    exp, store = run_small(tmp_path, sweep={"name": hostile}, algorithms={"random": {}, "greedy": {}}, baseline="random")
+    exp, store = run_small(tmp_path, sweep={"name": hostile}, algorithms={"random": {}, "greedy": {}},
+                           baseline="random")
     with store:
         rows, _ = tables.aggregate(exp, store)
         pairs = tables.paired(exp, store)
@@ -424,16 +427,19 @@ def test_table_one_replay_is_a_setting_that_needs_the_python_loop(tmp_path):
 
     resolved = resolve_settings("q_learning", {"replay_size": 1000, "backend": "python"})
     assert (resolved["replay_size"], resolved["replay_batch"]) == (1000, 4)
-    with pytest.raises(ConfigError, match=r"algorithms\.sarsa\.replay_size = 1000 needs algorithms\.sarsa\.backend = 'python'"):
+    with pytest.raises(ConfigError,
+                       match=r"algorithms\.sarsa\.replay_size = 1000 needs algorithms\.sarsa\.backend = 'python'"):
         resolve_settings("sarsa", {"replay_size": 1000})
     # refused with the experiment, before any task runs
     with pytest.raises(ConfigError, match="replay_size"):
         experiment(algorithms={"q_learning": {"replay_size": 10}})
     # the setting reaches the agent: replay changes what it learns
     env = AuvSwiptEnv(preset="tiny")
-    plain = build_policy("q_learning", env, resolve_settings("q_learning", {"train_episodes": 30, "backend": "python"}), seed=0)
+    plain = build_policy("q_learning", env, resolve_settings("q_learning", {"train_episodes": 30, "backend": "python"}),
+                         seed=0)
     replayed = build_policy(
-        "q_learning", env, resolve_settings("q_learning", {"train_episodes": 30, "backend": "python", "replay_size": 50}), seed=0
+        "q_learning", env,
+        resolve_settings("q_learning", {"train_episodes": 30, "backend": "python", "replay_size": 50}), seed=0
     )
     assert replayed.config.replay_size == 50 and replayed.config.replay_batch == 4
     assert not (plain.q_table_ == replayed.q_table_).all()

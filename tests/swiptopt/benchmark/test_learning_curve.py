@@ -110,7 +110,7 @@ def test_the_built_in_curves_cover_both_worlds_and_both_trainings():
         trainings = {e.algorithms[name]["training"] for name in e.budgets}
         assert len(trainings) == 1
         assert len(e.layout_seeds()) >= 6 and e.baseline in e.algorithms and e.baseline not in e.budgets
-        for name, budgets in e.budgets.items():
+        for budgets in e.budgets.values():
             assert len(budgets) >= 4 and all(b2 == 2 * b1 for b1, b2 in zip(budgets, budgets[1:]))
         tasks = e.tasks()
         seeds = {t.seed % 1000 for t in tasks if t.algorithm in e.budgets}

@@ -12,7 +12,7 @@ from planners.reward_tour import DWELLS, MAX_EXACT_STOPS, SELECTIONS, RewardKMea
 from swiptopt import Scenario, evaluate
 from swiptopt.benchmark import tables
 from swiptopt.benchmark.algorithms import ALGORITHMS, build_policy, quick_settings
-from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment, Task, builtin_experiments
+from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT, Experiment, builtin_experiments
 from swiptopt.benchmark.runner import run_task
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.cli import main
@@ -197,7 +197,7 @@ def test_no_algorithm_beats_the_milp_bound_in_a_small_optimum_run(small_optimum)
     assert code == 0 and missing == 0 and len(results) == 2 * len(experiment.algorithms)
     milp = {r["task"]["seed"] // SEEDS_PER_LAYOUT: r for r in results.values() if r["task"]["algorithm"] == "milp"}
     assert set(milp) == {0, 1}
-    for layout, r in milp.items():
+    for r in milp.values():
         assert r["task"]["settings"]["budget"] == "quick"
         assert r["extra"]["solver_status"] in ("optimal", "feasible") and r["extra"]["bound_label"] == "milp"
         # deterministic channel: the plan earns in the simulator exactly its value in the model

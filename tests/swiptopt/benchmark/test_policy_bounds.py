@@ -53,7 +53,8 @@ def test_every_algorithm_earns_at_most_the_optimal_adaptive_value(fading, name):
     policy = build_policy(name, env, quick_settings(name, {}), seed=0)
     summary = evaluate(policy, env, EPISODES, seed=123).summary["return"]
     assert summary.mean - summary.ci95 <= value
-    assert task_extra(name, policy, env).get("policy_class", "adaptive") == ("open-loop" if name == "milp" else "adaptive")
+    expected = "open-loop" if name == "milp" else "adaptive"
+    assert task_extra(name, policy, env).get("policy_class", "adaptive") == expected
 
 
 FADING = {k: v for k, v in TINY_FADING.items() if k != "layout_seed"}

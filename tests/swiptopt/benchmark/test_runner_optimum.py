@@ -3,8 +3,6 @@ affordable, and records why when it is not."""
 
 from __future__ import annotations
 
-import pytest
-
 import planners.bounds
 from swiptopt.benchmark.experiment import Experiment
 from swiptopt.benchmark.runner import run_task

@@ -213,7 +213,8 @@ def test_a_plugin_declares_its_worlds(tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match="hover runs in the continuous world only"):
         Experiment(**fields, plugins={"hover": "swiptopt_test_world_plugin:hover"})
     with pytest.raises(ConfigError, match=r"worlds \('ocean',\).*'grid', 'continuous'"):
-        Experiment(**{**fields, "algorithms": {"nowhere": {}}}, plugins={"nowhere": "swiptopt_test_world_plugin:nowhere"})
+        Experiment(**{**fields, "algorithms": {"nowhere": {}}},
+                   plugins={"nowhere": "swiptopt_test_world_plugin:nowhere"})
 
 
 # ------------------------------------------------------------------ the harbour suite
