@@ -16,7 +16,7 @@
 # %% [markdown]
 # # The acoustic channel, energy harvesting and coverage
 #
-# The physics of the shared model (SPEC 3), straight from the library functions the
+# The physics of the shared model (the paper's Section II), straight from the library functions the
 # simulator uses:
 #
 # 1. the link budget against distance and carrier frequency: transmission loss

@@ -2,8 +2,9 @@
 underwater sensor network with acoustic SWIPT.
 
 The model modules need only numpy; importing the package also registers the Gymnasium
-environments ``swiptopt/AuvSwipt-v1`` (the paper's grid; v0 is gone: see the env's Version
-History) and ``swiptopt/AuvSwiptContinuous-v0`` (the continuous world, SPEC 8). Solvers,
+environments ``swiptopt/AuvSwipt-v1`` (the paper's grid; its versions are in the env's Version
+History) and ``swiptopt/AuvSwiptContinuous-v0`` (the continuous world; docs/design.md, 'The two
+worlds'). Solvers,
 plotting, numba and clusters load where they are used, so ``import swiptopt`` stays fast
 and quiet.
 """

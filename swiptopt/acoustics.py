@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike
 
 from swiptopt import fpmath
 
-#: Range in which Thorp's absorption formula is used here, kHz (SPEC 3.1).
+#: Range in which Thorp's absorption formula is used here, kHz.
 THORP_VALID_KHZ = (0.1, 1000.0)
 
 #: 10 log10 of the acoustic intensity of 1 W radiated omnidirectionally, measured at 1 m,
@@ -38,7 +38,7 @@ def _positive(name: str, value: ArrayLike) -> np.ndarray:
 
 
 def thorp_absorption_db_per_km(freq_khz: ArrayLike) -> np.ndarray:
-    """Thorp's absorption coefficient a(f) in dB/km (paper eq. 4, l. 297; Thorp 1967).
+    """Thorp's absorption coefficient a(f) in dB/km (paper eq. 4; Thorp 1967).
 
     ``freq_khz``: any shape, > 0. Example: a(24 kHz) = 5.6912 dB/km.
     """
@@ -49,7 +49,7 @@ def thorp_absorption_db_per_km(freq_khz: ArrayLike) -> np.ndarray:
 def transmission_loss_db(
     distance_m: ArrayLike, freq_khz: ArrayLike, spreading_k: ArrayLike = 1.5
 ) -> np.ndarray:
-    """Transmission loss TL = k 10 log10(r) + (r / 1000) a(f), dB (paper eq. 3, l. 291; Stojanovic 2007).
+    """Transmission loss TL = k 10 log10(r) + (r / 1000) a(f), dB (paper eq. 3; Stojanovic 2007).
 
     ``distance_m`` is clamped to at least 1 m (the reference distance of the source level);
     ``spreading_k`` is 1 for cylindrical, 2 for spherical spreading, 1.5 the practical value.
@@ -60,12 +60,12 @@ def transmission_loss_db(
 
 
 def turbulence_noise_psd_db(freq_khz: ArrayLike) -> np.ndarray:
-    """Turbulence noise N_t = 17 - 30 log10 f, dB re 1 uPa^2/Hz (paper eq. 5, l. 308; Stojanovic 2007)."""
+    """Turbulence noise N_t = 17 - 30 log10 f, dB re 1 uPa^2/Hz (paper eq. 5; Stojanovic 2007)."""
     return 17.0 - 30.0 * fpmath.log10(_positive("freq_khz", freq_khz))
 
 
 def shipping_noise_psd_db(freq_khz: ArrayLike, shipping: ArrayLike) -> np.ndarray:
-    """Shipping noise N_s = 30 + 20 s + 26 log10 f - 60 log10(f + 0.03) (paper eq. 6, l. 309).
+    """Shipping noise N_s = 30 + 20 s + 26 log10 f - 60 log10(f + 0.03) (paper eq. 6).
 
     ``shipping`` is the shipping activity factor s in [0, 1].
     """
@@ -75,14 +75,14 @@ def shipping_noise_psd_db(freq_khz: ArrayLike, shipping: ArrayLike) -> np.ndarra
 
 
 def wind_noise_psd_db(freq_khz: ArrayLike, wind_mps: ArrayLike) -> np.ndarray:
-    """Wind-driven surface noise N_w = 50 + 7.5 sqrt(w) + 20 log10 f - 40 log10(f + 0.4) (paper eq. 7, l. 310)."""
+    """Wind-driven surface noise N_w = 50 + 7.5 sqrt(w) + 20 log10 f - 40 log10(f + 0.4) (paper eq. 7)."""
     f = _positive("freq_khz", freq_khz)
     w = np.asarray(wind_mps, dtype=float)
     return 50.0 + 7.5 * np.sqrt(w) + 20.0 * fpmath.log10(f) - 40.0 * fpmath.log10(f + 0.4)
 
 
 def thermal_noise_psd_db(freq_khz: ArrayLike) -> np.ndarray:
-    """Thermal noise N_th = -15 + 20 log10 f, dB re 1 uPa^2/Hz (paper eq. 8, l. 311)."""
+    """Thermal noise N_th = -15 + 20 log10 f, dB re 1 uPa^2/Hz (paper eq. 8)."""
     return -15.0 + 20.0 * fpmath.log10(_positive("freq_khz", freq_khz))
 
 
@@ -144,7 +144,7 @@ def source_level_db(
     """Source level of the projector, SL = 170.8 + 10 log10(P eta) + DI, dB re 1 uPa @ 1 m.
 
     ``efficiency`` is the electro-acoustic efficiency eta_ea in (0, 1]; ``directivity_db``
-    the transmit directivity index (paper eq. 2, l. 281; Urick).
+    the transmit directivity index (paper eq. 2; Urick).
     """
     p = _positive("electrical_power_w", electrical_power_w)
     eta = _positive("efficiency", efficiency)
@@ -162,7 +162,7 @@ def snr_db(
     noise_level_db: ArrayLike,
     directivity_rx_db: ArrayLike = 0.0,
 ) -> np.ndarray:
-    """Passive sonar equation: SNR = SL - TL - NL + DI_rx, dB (paper eq. 1, l. 258, SPEC 3.1).
+    """Passive sonar equation: SNR = SL - TL - NL + DI_rx, dB (paper eq. 1).
 
     The paper adds the directivity index twice; here the projector's is in SL and the
     receiver's is ``directivity_rx_db``.
@@ -181,7 +181,7 @@ def db_to_linear(value_db: ArrayLike) -> np.ndarray:
 
 
 def capacity_bps(bandwidth_hz: ArrayLike, snr_db: ArrayLike) -> np.ndarray:
-    """Shannon rate R = B log2(1 + SNR_lin), bit/s (paper eq. 15, l. 415)."""
+    """Shannon rate R = B log2(1 + SNR_lin), bit/s (paper eq. 15)."""
     return shannon_rate_bps(np.asarray(bandwidth_hz, dtype=float), db_to_linear(snr_db))
 
 

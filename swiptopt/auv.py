@@ -1,6 +1,6 @@
 """AUV energy: drag, propulsion power, and the energy of moving and hovering.
 
-Paper eqs. 16-18 (l. 429-441) and SPEC 3.3. Defaults describe a REMUS-100-class vehicle:
+Paper eqs. 16-18; docs/design.md, 'The AUV (Section II-D)'. Defaults describe a REMUS-100-class vehicle:
 cruise speed 1.5 m/s and hull diameter 0.19 m (so frontal area pi 0.095^2 = 0.028 m^2) are
 the manufacturer's published figures; the drag coefficient 0.3, the propulsive efficiency
 0.5 and the 15 W hotel load are typical values for small torpedo-shaped AUVs in the
@@ -67,7 +67,7 @@ def move_energy_j(
     propulsion_power_w: ArrayLike,
     hotel_power_w: ArrayLike = DEFAULT_HOTEL_POWER_W,
 ) -> np.ndarray:
-    """Energy of a move, (P_prop + H) d / v, J (paper eq. 16 with l. 447's E = P d / v)."""
+    """Energy of a move, (P_prop + H) d / v, J (paper eq. 16 with Section II-D's E = P d / v)."""
     return (np.asarray(propulsion_power_w, float) + np.asarray(hotel_power_w, float)) * (
         np.asarray(distance_m, float) / np.asarray(speed_mps, float)
     )
@@ -78,7 +78,7 @@ def hover_energy_j(
     hotel_power_w: ArrayLike = DEFAULT_HOTEL_POWER_W,
     station_keeping_power_w: ArrayLike = 0.0,
 ) -> np.ndarray:
-    """Energy of holding station for ``duration_s``, (H + P_station) dt, J (SPEC 3.3)."""
+    """Energy of holding station for ``duration_s``, (H + P_station) dt, J."""
     return (np.asarray(hotel_power_w, float) + np.asarray(station_keeping_power_w, float)) * np.asarray(
         duration_s, float
     )

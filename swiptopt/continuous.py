@@ -1,4 +1,4 @@
-"""The continuous world (SPEC 8): the paper's model with the AUV at any 3D position.
+"""The continuous world (docs/design.md, 'The two worlds'): the paper's model with the AUV at any 3D position.
 
 Beside the paper's grid, the AUV here has a continuous position and each step commands a
 move of at most ``speed_mps * step_duration_s`` (= the scenario's ``cell_size_m``, which in

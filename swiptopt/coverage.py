@@ -1,8 +1,8 @@
-"""Which nodes the AUV covers, and the paper's coverage-probability analysis (paper eqs. 24-25, l. 740-749).
+"""Which nodes the AUV covers, and the paper's coverage-probability analysis (paper eqs. 24-25).
 
 A node is covered from an AUV position when it lies below the AUV inside the downward cone
 (half-angle ``cone_half_angle_deg``), within ``cone_range_m`` of it, and its link SNR
-reaches ``snr_threshold_db`` (SPEC 3.5).
+reaches ``snr_threshold_db`` (docs/design.md, 'The acoustic link (Section II-B)').
 
 The analysis asks: with n nodes placed uniformly in the free water, what is the probability
 that at least k are covered from a position? Each node is covered independently with
@@ -268,7 +268,7 @@ def analytic_coverage_probability(
     *,
     rng: np.random.Generator | int | None = None,
 ) -> float:
-    """P(at least k of n uniform nodes covered from ``position_m``), binomial (paper eq. 25, l. 748)."""
+    """P(at least k of n uniform nodes covered from ``position_m``), binomial (paper eq. 25)."""
     return binomial_at_least(n_nodes, k, coverage_fraction(scenario, position_m, rng=rng).p)
 
 
@@ -295,7 +295,7 @@ def simulated_coverage_probability(
 
 @dataclass(frozen=True)
 class CoverageStatement:
-    """One of the paper's coverage statements (l. 772-773) checked from one position."""
+    """One of the paper's coverage statements (Section III-B, on Fig. 5) checked from one position."""
 
     text: str
     """The statement, quoted from the paper."""
@@ -313,11 +313,11 @@ class CoverageStatement:
         return self.analytic > self.claimed_above
 
 
-#: The paper's coverage statements (l. 772-773) as (quote, n, at least k, implied floor).
+#: The paper's coverage statements (Section III-B, on Fig. 5) as (quote, n, at least k, implied floor).
 #: "More than 10 nodes" is read at n = 11, "> 30" at 31 and "exceeds 50" at 51.
 PAPER_COVERAGE_STATEMENTS = (
     ("more than 10 nodes: P(covering at least one node) > 50 %", 11, 1, 0.5),
-    ("exactly 10 nodes (the README's reading): P(at least one) > 50 %", 10, 1, 0.5),
+    ("the same at exactly 10 nodes: P(at least one) > 50 %", 10, 1, 0.5),
     ("more than 30 nodes: a high probability of covering more than 3 nodes", 31, 4, 0.5),
     ("more than 50 nodes: > 50 % probability of covering more than 4 nodes", 51, 5, 0.5),
 )
@@ -326,7 +326,7 @@ PAPER_COVERAGE_STATEMENTS = (
 def paper_coverage_statements(
     scenario: Scenario, position_m: ArrayLike, *, rng: np.random.Generator | int | None = 0
 ) -> list[CoverageStatement]:
-    """The paper's coverage statements (l. 772-773) evaluated from ``position_m`` (3,)."""
+    """The paper's coverage statements (Section III-B) evaluated from ``position_m`` (3,)."""
     return [
         CoverageStatement(text, n, k, floor, analytic_coverage_probability(scenario, position_m, n, k, rng=rng))
         for text, n, k, floor in PAPER_COVERAGE_STATEMENTS

@@ -205,9 +205,9 @@ class AuvSwiptEnv(LayoutEnv):
     SWIPT with power-splitting ratio alpha, delivers energy to the node's storage. With the
     scenario's ``link = "uplink"`` the data instead travels on each node's own transmission
     (the paper's eq. 13), in packets paid from its storage, and all of the AUV's received
-    power charges it (SPEC 3.2b). The model is Omeke et al.'s (SPEC 3 and 4): Thorp
-    absorption, Stojanovic's noise, the passive sonar equation, a linear or logistic
-    harvester, REMUS-100-like propulsion.
+    power charges it. The model is Omeke et al.'s (Sections II and III; docs/design.md, 'The
+    model'): Thorp absorption, Stojanovic's noise, the passive sonar equation, a linear or
+    logistic harvester, REMUS-100-like propulsion.
 
     ## Action Space
 
@@ -232,7 +232,7 @@ class AuvSwiptEnv(LayoutEnv):
     ## Rewards
 
     ``r = Gamma bits / D_ref + (1 - Gamma) joules / E_ref - lambda E_move / E_move_ref``
-    (paper eq. 23, l. 703, normalised), where only data still to deliver and energy still storable
+    (paper eq. 23, normalised), where only data still to deliver and energy still storable
     count, so hovering over served nodes earns only the movement part. The three weighted
     parts are in ``info["reward_parts"]`` (``throughput``, ``harvest``, ``movement``) and sum
     to the reward.

@@ -26,7 +26,7 @@ class AuvSwiptContinuousEnv(LayoutEnv):
     """
     ## Description
 
-    The model of ``swiptopt/AuvSwipt-v1`` (SPEC 3-4) in continuous space (SPEC 8): the AUV
+    The model of ``swiptopt/AuvSwipt-v1`` in continuous space (docs/design.md, 'The two worlds'): the AUV
     has a 3D position and moves along straight segments in any direction, stopped by
     obstacles (boxes, spheres), the seabed and the volume's boundary. Coverage (cone, range,
     SNR threshold), the link budget, data and energy are computed from the actual position

@@ -1,8 +1,8 @@
 """SWIPT at the sensor node: induced voltage, available power, power splitting, harvesting.
 
-Paper eqs. 10-12 (l. 365-380) and SPEC 3.2. The paper writes the SNR where the received level belongs in
-the induced-voltage formula; the derivation it cites (Bereketli & Bilgen 2012) uses the
-received level RL = SL - TL, and so do we.
+Paper eqs. 10-12; docs/design.md, 'SWIPT at the node (Section II-C)'. The paper writes the SNR
+where the received level belongs in the induced-voltage formula; the derivation it cites
+(Bereketli & Bilgen 2012) uses the received level RL = SL - TL, and so do we.
 
 Power splitting: a fraction ``split_ratio`` (alpha) of the received signal goes to the
 information decoder, the rest (1 - alpha) to the harvester. Noise is not split, so the
@@ -37,7 +37,7 @@ def _split(split_ratio: ArrayLike) -> np.ndarray:
 
 
 def induced_voltage_v(received_level_db: ArrayLike, sensitivity_db: ArrayLike) -> np.ndarray:
-    """RMS open-circuit voltage of the node's hydrophone, V = 10^((RL + rho) / 20) (paper eq. 10, l. 365).
+    """RMS open-circuit voltage of the node's hydrophone, V = 10^((RL + rho) / 20) (paper eq. 10).
 
     ``received_level_db`` in dB re 1 uPa; ``sensitivity_db`` (rho) in dB re 1 V/uPa.
     """
@@ -50,7 +50,7 @@ def available_power_w(
     load_ohm: ArrayLike,
     n_elements: ArrayLike = 1,
 ) -> np.ndarray:
-    """Electrical power available to a matched load, P_av = n V^2 / (4 R_p), W (paper eq. 11, l. 370)."""
+    """Electrical power available to a matched load, P_av = n V^2 / (4 R_p), W (paper eq. 11)."""
     load = np.asarray(load_ohm, dtype=float)
     if np.any(~(load > 0)):
         raise ValueError(f"load_ohm must be > 0, got {load_ohm!r}")
@@ -139,7 +139,7 @@ def harvested_power_w(
 ) -> np.ndarray:
     """DC power harvested from the (1 - alpha) share of the received signal, W.
 
-    ``model="linear"``: P_h = eta_ae (1 - alpha) P_av (SPEC 3.2). ``model="logistic"``: the
+    ``model="linear"``: P_h = eta_ae (1 - alpha) P_av (paper eq. 12 with the split). ``model="logistic"``: the
     Boshkovska curve of P_in = (1 - alpha) P_av, whose fitted parameters already include the
     conversion loss (``efficiency`` is not applied). Either way the result is capped at the
     input power: a fitted curve with arbitrary parameters must not create energy.

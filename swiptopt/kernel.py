@@ -1,4 +1,5 @@
-"""The simulator kernel: the single source of truth for how the world moves (SPEC 4).
+"""The simulator kernel: the single source of truth for how the world moves (docs/design.md,
+'The kernel's contract').
 
 :func:`build_tables` precomputes, once per scenario, everything that does not change within
 an episode: for each cell and action the next cell and the AUV's propulsion energy (with
@@ -117,7 +118,7 @@ def replace_params(params: np.ndarray, **changes: float) -> np.ndarray:
     return out
 
 
-#: ``params[P_LINK]`` of each data link (SPEC 3.2b).
+#: ``params[P_LINK]`` of each data link.
 LINK_CODES = {"downlink_split": 0, "uplink": 1}
 
 # Indices into ``EpisodeState.acc``, the episode's running totals.
@@ -196,7 +197,7 @@ def build_tables(scenario: Scenario) -> Tables:
     moved = next_cell != np.arange(n_cells)[:, None]
 
     # Propulsion: the water-relative speed needed to hold the ground velocity in the current
-    # at the cell's depth (a blocked move still costs the attempt, SPEC 4). Hover holds
+    # at the cell's depth (a blocked move still costs the attempt). Hover holds
     # station against the current, plus any fixed station-keeping power.
     dt = scenario.step_duration_s
     current = scenario.current_at_mps(scenario.cell_centers_m[:, 2])  # (n_cells, 3)
@@ -466,7 +467,7 @@ TABULAR_COUNT_CAP = 3
 
 
 def tabular_observation(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma):  # type: ignore[no-untyped-def]
-    """SPEC 4 tabular state: cell * 4 + min(covered nodes still to serve, 3)."""
+    """The tabular state, the paper's (Section III-B) made finite: cell * 4 + min(covered nodes still to serve, 3)."""
     count = unserved_covered(cell, cov_ptr, cov_node, data_left, energy, capacity, gamma)
     return cell * (TABULAR_COUNT_CAP + 1) + min(count, TABULAR_COUNT_CAP)
 
@@ -479,7 +480,7 @@ VECTOR_NODE_FEATURES = 6
 def vector_observation(  # type: ignore[no-untyped-def]
     cell, t, cov_ptr, cov_node, data_left, energy, data0, capacity, params, cells_norm, nodes_norm, out
 ):
-    """SPEC 4 vector observation, written into ``out`` ((4 + 6 n_nodes,) float32).
+    """The vector observation, written into ``out`` ((4 + 6 n_nodes,) float32).
 
     The AUV's cell centre over the volume's extent (``cells_norm`` (n_cells, 3)), the
     fraction of the episode left, then per node: its position minus the AUV's over the
@@ -544,12 +545,12 @@ def step_vector(action, uniforms, normals, arrays, data0, cells_norm, nodes_norm
 
 
 def step(action, uniforms, normals, arrays):  # type: ignore[no-untyped-def]
-    """Advance the episode by one action (SPEC 4) on ``arrays`` (:class:`StepArrays`) with the
+    """Advance the episode by one action on ``arrays`` (:class:`StepArrays`) with the
     step's draws ``uniforms`` and ``normals``; returns RUNNING, TERMINATED or TRUNCATED.
 
     Move (blocked moves stay put and still cost the attempt) -> nodes covered from the new
     cell -> per covered node, with its next draws from the buffers (a failure uniform, the
-    fading normals) giving this step's fading gain g, by the scenario's data link (SPEC 3.2b):
+    fading normals) giving this step's fading gain g, by the scenario's data link:
 
     - ``downlink_split``: data min(D_left, dt B log2(1 + alpha g SNR)) unless the link
       fails, the instantaneous SNR is under the threshold, or the node's energy is under

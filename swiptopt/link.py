@@ -51,7 +51,7 @@ class LinkBudget:
 
 
 def source_level_db(scenario: Scenario) -> float:
-    """Projector source level of the scenario, dB re 1 uPa @ 1 m (SPEC 3.1)."""
+    """Projector source level of the scenario, dB re 1 uPa @ 1 m (paper eq. 2)."""
     return float(
         acoustics.source_level_db(
             scenario.electrical_power_w, scenario.electroacoustic_efficiency, scenario.directivity_tx_db
@@ -84,7 +84,7 @@ def uplink_snr_offset_db(scenario: Scenario) -> float:
 
 
 def noise_level_db(scenario: Scenario) -> float:
-    """Noise level over the scenario's band, dB re 1 uPa (SPEC 3.1)."""
+    """Noise level over the scenario's band, dB re 1 uPa (paper eqs. 5-8 over the band B)."""
     return float(
         acoustics.noise_level_db(
             scenario.frequency_khz,
@@ -116,7 +116,10 @@ def harvested_power_w(
 def link_budget(
     scenario: Scenario, distance_m: ArrayLike, split_ratio: ArrayLike | None = None
 ) -> LinkBudget:
-    """Every quantity of the mean (unfaded) link at ``distance_m`` (any shape), SPEC 3.1-3.2b.
+    """Every quantity of the mean (unfaded) link at ``distance_m`` (any shape).
+
+    The formulas are listed in docs/design.md, 'The acoustic link (Section II-B)' and 'SWIPT at the node
+    (Section II-C)'.
 
     ``split_ratio`` defaults to the scenario's for ``link = "downlink_split"`` and to 0 (all
     received power to the harvester) for ``"uplink"``.
@@ -153,7 +156,8 @@ def harvest_split(scenario: Scenario) -> float:
 
 @dataclass(frozen=True)
 class UplinkPacket:
-    """What one uplink packet costs a node on a link of a given rate (SPEC 3.2b)."""
+    """What one uplink packet costs a node on a link of a given rate (docs/design.md, 'SWIPT at
+    the node (Section II-C)')."""
 
     airtime_s: np.ndarray
     """Time on air, packet_bits / rate, s."""
@@ -189,7 +193,7 @@ def service_range_m(scenario: Scenario) -> float:
 
 @dataclass(frozen=True)
 class AuvPower:
-    """The AUV's power draw and per-step energies in still water (SPEC 3.3)."""
+    """The AUV's power draw and per-step energies in still water (paper eqs. 16-18)."""
 
     propulsion_w: float
     hotel_w: float
@@ -226,7 +230,8 @@ def auv_power(scenario: Scenario) -> AuvPower:
 
 @dataclass(frozen=True)
 class RewardReferences:
-    """The normalisers of the reward (SPEC 4): r = G bits/D_ref + (1-G) J/E_ref - l E_auv/E_move_ref."""
+    """The normalisers of the reward (paper eq. 23):
+    r = G bits/D_ref + (1-G) J/E_ref - l E_auv/E_move_ref."""
 
     data_ref_bits: float
     energy_ref_j: float

@@ -1,8 +1,9 @@
-"""Per-episode metrics (SPEC 4), computed from the kernel's state at the end of an episode.
+"""Per-episode metrics, computed from the kernel's state at the end of an episode.
 
 The environment computes them once, on an episode's last step; every part is vectorised
-over the nodes (a Python loop over 1000 nodes here once cost more per episode than the
-episode's 50 steps)."""
+over the nodes, so that scoring an episode of many nodes costs little next to its steps.
+What each metric means: docs/design.md, 'A step, the reward and the end of an episode
+(Section III)'."""
 
 from __future__ import annotations
 
@@ -51,14 +52,14 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
 
     Energy efficiency, bits per joule of AUV energy, under each reading of the paper's
     "EE = T / P_tau ... P_tau is the sum of the transmission power from the AUV to node and
-    the navigation power" (l. 936-941), side by side:
+    the navigation power" (Section IV, on Fig. 9), side by side:
 
     - ``energy_efficiency_bit_per_j``: propulsion + hotel + the projector in the steps where
       it serves at least one node (the simulator's own AUV energy, ``auv_energy_j``);
     - ``energy_efficiency_always_on_bit_per_j``: the projector counted in every step of the
       episode, covered or not;
     - ``energy_efficiency_per_node_bit_per_j``: the projector's energy counted once per node
-      it covers in each step, as if "each node transmits with 1 kW" (l. 938) meant one
+      it covers in each step, as if "each node transmits with 1 kW" (Section IV) meant one
       P_elec per served link: this AUV energy grows with the number of nodes covered;
     - ``mobility_efficiency_bit_per_j``: propulsion and hotel only (motion, eqs. 16-18).
 

@@ -1,8 +1,8 @@
 """Scenarios: one frozen, validated configuration of the network, the channel and the AUV.
 
-A :class:`Scenario` holds every parameter of SPEC 3.4 as a flat set of named fields (so
-presets, overrides, TOML files and ``gymnasium.make`` keyword arguments all speak the same
-names). A wrong value fails at construction with a :class:`ScenarioError` that names the
+A :class:`Scenario` holds every parameter of the model (docs/design.md, 'The model') as a flat
+set of named fields (so presets, overrides, TOML files and ``gymnasium.make`` keyword
+arguments all speak the same names). A wrong value fails at construction with a :class:`ScenarioError` that names the
 field, the value and what is allowed; a grid too big to simulate (see :mod:`swiptopt.limits`)
 fails before any cell is allocated. Node positions, initial charges and link failure
 probabilities are drawn from ``layout_seed`` alone, so one scenario is one layout.
@@ -138,11 +138,11 @@ def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
 
 CHANNELS = ("none", "shadowing", "rician")
 HARVESTERS = ("linear", "logistic")
-#: Which signal carries the data (SPEC 3.2b): the AUV's, power-split at the node, or the
+#: Which signal carries the data: the AUV's, power-split at the node, or the
 #: node's own transmission to the AUV (the paper's eq. 13, SNR with the node's power P_i).
 LINKS = ("downlink_split", "uplink")
 
-#: Node transmitter electrical power that gives Table I's "170 dB re 1 uPa @ 1 m" (l. 459)
+#: Node transmitter electrical power that gives Table I's "170 dB re 1 uPa @ 1 m"
 #: at the default node efficiency 0.5: 10^((170 - 170.8) / 10) / 0.5 W (paper eq. 2).
 TABLE1_NODE_POWER_W = 1.6635
 
@@ -152,7 +152,7 @@ TABLE1_NODE_POWER_W = 1.6635
 
 @dataclass(frozen=True)
 class Scenario:
-    """Every parameter of one network, channel and AUV (SPEC 3.4); frozen and validated.
+    """Every parameter of one network, channel and AUV; frozen and validated.
 
     Build with ``Scenario(...)``, :meth:`preset` or :meth:`from_toml`; change with
     :meth:`replace`. Field names carry their units.
@@ -182,7 +182,7 @@ class Scenario:
     idle_drain_w: float = _field(0.0, "W", "node idle power drain", lo=0, hi=1e3)
     energy_gate_j: float = _field(0.0, "J", "a node below this stored energy cannot transmit (0: off)", lo=0, hi=1e9)
 
-    # acoustics (SPEC 3.1)
+    # acoustics (Section II-B)
     frequency_khz: float = _field(24.0, "kHz", "carrier frequency", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
     band_min_khz: float = _field(22.0, "kHz", "lower band edge", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
     band_max_khz: float = _field(26.0, "kHz", "upper band edge", lo=THORP_VALID_KHZ[0], hi=THORP_VALID_KHZ[1])
@@ -196,7 +196,7 @@ class Scenario:
     directivity_rx_db: float = _field(0.0, "dB", "node receiver directivity index", lo=0, hi=60)
     snr_threshold_db: float = _field(10.0, "dB", "minimum SNR for a link", lo=-50, hi=200)
 
-    # which signal carries the data (SPEC 3.2b)
+    # which signal carries the data
     link: str = _field(
         "downlink_split", "", "data link: 'downlink_split' (the AUV's signal, split by alpha) or 'uplink' "
         "(each node transmits with its own power, paid from its storage)", kind="str", choices=LINKS,
@@ -209,7 +209,7 @@ class Scenario:
     node_circuit_power_w: float = _field(0.1, "W", "node circuit power while transmitting (uplink; Table I P_C)", lo=0, hi=1e4)
     packet_bits: float = _field(800.0, "bit", "uplink packet size: data moves in whole packets (Table I: 100 bytes)", lo=1, hi=1e9)
 
-    # SWIPT at the node (SPEC 3.2)
+    # SWIPT at the node (Section II-C)
     sensitivity_db: float = _field(-170.0, "dB re 1 V/uPa", "hydrophone receive sensitivity", lo=-300, hi=0)
     load_ohm: float = _field(100.0, "ohm", "matched load resistance R_p", lo=0, lo_open=True, hi=1e9)
     n_elements: int = _field(1, "", "transducer elements per node", lo=1, hi=10_000, kind="int")
@@ -219,11 +219,11 @@ class Scenario:
     logistic_a_per_w: float = _field(150.0, "1/W", "logistic harvester steepness a", lo=0, lo_open=True, hi=1e9)
     logistic_b_w: float = _field(0.014, "W", "logistic harvester turning point b", lo=0, hi=1e6)
 
-    # coverage cone (SPEC 3.5)
+    # coverage cone
     cone_half_angle_deg: float = _field(30.0, "deg", "half-angle of the downward coverage cone", lo=0, lo_open=True, hi=90, hi_open=True)
     cone_range_m: float = _field(100.0, "m", "slant range limit of the cone", lo=0, lo_open=True, hi=1e6)
 
-    # AUV (SPEC 3.3)
+    # AUV (Section II-D)
     start_cell: tuple[int, int, int] | None = _field(None, "cell", "AUV start (i, j, k); default the surface cell at the centre", kind="cell", optional=True)
     speed_mps: float = _field(1.5, "m/s", "AUV cruise speed through the water", lo=0, lo_open=True, hi=20)
     drag_coefficient: float = _field(0.3, "", "drag coefficient C_D", lo=0, lo_open=True, hi=10)
@@ -236,7 +236,7 @@ class Scenario:
     current_mps: tuple[float, float, float] = _field((0.0, 0.0, 0.0), "m/s", "ocean current at the surface (x, y, z)", kind="vector3")
     current_bottom_mps: tuple[float, float, float] | None = _field(None, "m/s", "current at the bottom; linear in depth between (default: uniform)", kind="vector3", optional=True)
 
-    # MDP (SPEC 4)
+    # MDP (Section III)
     episode_steps: int = _field(50, "steps", "episode length", lo=1, hi=1_000_000, kind="int")
     reward_weight: float = _field(0.5, "", "Gamma: weight of data against energy in the reward", lo=0, hi=1)
     split_ratio: float = _field(0.5, "", "alpha: share of the signal sent to information decoding", lo=0, hi=1)
@@ -249,7 +249,7 @@ class Scenario:
     shadowing_sigma_db: float = _field(3.0, "dB", "log-normal shadowing standard deviation", lo=0, hi=30)
     rician_k: float = _field(10.0, "", "Rician K factor (linear)", lo=0, hi=1e6)
 
-    # obstacles (SPEC 3.4)
+    # obstacles
     obstacles: tuple[Obstacle, ...] = _field((), "", "boxes and spheres", kind="obstacles")
     seabed_height_m: tuple[tuple[float, ...], ...] | None = _field(
         None, "m", "seabed height above the bottom on a regular (x, y) grid, bilinear", kind="heightmap",
@@ -429,7 +429,7 @@ class Scenario:
 
     @property
     def step_duration_s(self) -> float:
-        """Duration of every step, cell size / AUV speed (SPEC 4)."""
+        """Duration of every step, cell size / AUV speed."""
         return self.cell_size_m / self.speed_mps
 
     @cached_property
@@ -579,20 +579,20 @@ def _check_field(name: str, value: Any, spec: Spec) -> Any:
 # ---------------------------------------------------------------------------- presets
 
 #: The presets as overrides of the defaults above. ``paper`` is the paper's Table I where
-#: that is consistent and the SPEC's documented choices elsewhere; ``harbour`` adds
-#: obstacles, a sloping seabed and a tidal current, where path planning matters; ``tiny``
-#: is a deterministic instance (no fading, no link failures, a wide beam) small enough for
-#: an exact optimum.
+#: that is consistent and the choices docs/paper-fidelity.md documents elsewhere;
+#: ``harbour`` adds obstacles, a sloping seabed and a tidal current, where path planning
+#: matters; ``tiny`` is a deterministic instance (no fading, no link failures, a wide beam)
+#: small enough for an exact optimum.
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
-    # Table I (paper l. 456-481) literally, where it gives a value; README "Where we follow
-    # the paper" has a row per entry. Its "transmit power 170 dB re 1 uPa @ 1 m" is the
-    # nodes' P_i of eq. 13 (node_transmit_power_w's default gives it at efficiency 0.5) and
-    # the AUV projector stays at the text's 1 kW (l. 938): at 170 dB the AUV would deliver
-    # 1/600 of the power and charge nothing within an episode. The noise comes from the
-    # noise model (eqs. 5-8), not the table's unit-less "-50 dB". Packet 100 bytes, circuit
-    # 100 mW, 22-26 kHz around 24 kHz, k = 1.5, w = 10 m/s, s = 0, failures 0.05-0.25 are
-    # the defaults already; the RL values of Table I are the tabular agents' defaults.
+    # Table I literally, where it gives a value; docs/paper-fidelity.md, 'Item by item' has
+    # a row per entry. Its "transmit power 170 dB re 1 uPa @ 1 m" is the nodes' P_i of
+    # eq. 13 (node_transmit_power_w's default gives it at efficiency 0.5) and the AUV
+    # projector stays at the text's 1 kW (Section IV): at 170 dB the AUV would deliver 1/600
+    # of the power and charge nothing within an episode. The noise comes from the noise
+    # model (eqs. 5-8), not the table's unit-less "-50 dB". Packet 100 bytes, circuit 100
+    # mW, 22-26 kHz around 24 kHz, k = 1.5, w = 10 m/s, s = 0, failures 0.05-0.25 are the
+    # defaults already; the RL values of Table I are the tabular agents' defaults.
     "paper-table1": {
         "link": "uplink",
         "node_transmit_power_w": TABLE1_NODE_POWER_W,

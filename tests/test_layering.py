@@ -1,4 +1,4 @@
-"""The architecture, enforced by reading every module's imports (SPEC 2).
+"""The architecture (docs/architecture.md), enforced by reading every module's imports.
 
 Bottom to top: the ``swiptopt`` model modules -> ``rl`` and ``planners`` ->
 ``swiptopt.benchmark`` and ``swiptopt.cli``. A module may import its own layer and the layers

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from swiptopt import acoustics as ac
 
-# Reference values worked out by hand from the published formulas (SPEC 3.1).
+# Reference values worked out by hand from the published formulas (paper eqs. 4-8).
 THORP_REFERENCE = {1.0: 0.0690, 10.0: 1.1870, 24.0: 5.6912, 50.0: 17.4671, 100.0: 34.0687}
 NOISE_REFERENCE = [
     # (f kHz, shipping, wind m/s), (N_t, N_s, N_w, N_th), total

@@ -37,7 +37,7 @@ def test_paper_coverage_number():
     frac = cov.coverage_fraction(s, (50.0, 50.0, 0.0))
     assert frac.method == "analytic"
     assert frac.p == pytest.approx(math.pi * 50.0**3 / 9.0 / 500_000.0)
-    # SPEC 3.4: from the surface centre, P(cover >= 1 of 10) is about 0.6
+    # from the surface centre, P(cover >= 1 of 10) is about 0.6
     assert cov.analytic_coverage_probability(s, (50.0, 50.0, 0.0), 10, 1) == pytest.approx(0.5987, abs=1e-4)
 
 
@@ -144,7 +144,7 @@ def test_kernel_tables_hold_the_covered_pairs_and_their_link():
 
 
 def test_the_papers_coverage_statements_from_the_surface_centre_and_the_start_cell():
-    """l. 772-773 against the paper preset. The surface centre (50, 50, 0) is where the
+    """The statements of Section III-B (on Fig. 5) against the paper preset. The surface centre (50, 50, 0) is where the
     paper's figure puts the AUV; it never stands there: the start cell's centre is
     (55, 55, 5). The cone stays inside the volume from both, so the binomial is exact
     (closed-form volume); direct simulation of 4000 layouts agrees within 4 standard

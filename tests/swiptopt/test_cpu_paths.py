@@ -20,8 +20,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: The digests of :func:`digests` on the development machine. A change to the model's
-#: physics changes them on purpose: regenerate the README's tables, then these
+#: The digests of :func:`digests`, the same on every x86-64 CPU with AVX2 (docs/guarantees.md).
+#: A change to the model's physics changes them on purpose: regenerate the results' tables
+#: (README, docs/results.md), then these
 #: (``python -m tests.swiptopt.test_cpu_paths`` prints them).
 REFERENCE = {
     "grid tables": "0f6219067d7ca01c",

@@ -24,7 +24,7 @@ CASES = [
     ("paper", {"channel": "rician", "harvester": "logistic", "n_nodes": 8}),
     ("harbour", {"idle_drain_w": 0.001, "energy_gate_j": 0.3, "n_nodes": 6}),
 ]
-#: The node-to-AUV data link (SPEC 3.2b): packets paid from the nodes' storage.
+#: The node-to-AUV data link: packets paid from the nodes' storage.
 UPLINK_CASES = [
     ("paper", {"link": "uplink"}),
     ("harbour", {"link": "uplink", "channel": "rician", "energy_gate_j": 0.2, "n_nodes": 6, "storage_capacity_j": 0.3}),
@@ -313,7 +313,8 @@ def test_bad_arguments():
 
 
 def reference_vector_observation(env):
-    """SPEC 4's vector observation written out directly from the scenario (the test's own)."""
+    """The vector observation (docs/design.md, 'A step, the reward and the end of an episode
+    (Section III)') written out directly from the scenario (the test's own)."""
     s, t, sc = env.state, env.tables, env.scenario
     extent = sc.extent_m
     here = sc.cell_centers_m[s.cell] / extent
@@ -502,7 +503,8 @@ def test_recent_layouts_stay_built():
 
 
 def test_grid_actions_are_integers_never_truncated_or_parsed():
-    """int(action) took 2.7 as move 2 and "3" as move 3; a huge array gave a huge message."""
+    """2.7 is not move 2 and "3" is not move 3 (no truncation, no parsing); a huge array gets a
+    short message."""
     env = AuvSwiptEnv(preset="tiny")
     env.reset(seed=0)
     for bad in (2.7, "3", 1j, True, float("nan"), -1, K.N_ACTIONS, np.zeros(10**6), [1, 2]):
