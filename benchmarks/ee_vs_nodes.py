@@ -2,10 +2,11 @@
 
 Runs, on the paper preset at the paper's data setting (Gamma = 1), the random trajectory
 and the rate-greedy planner on layouts 0..L-1 for N in {10, 20, 30, 40, 50}, and prints per
-N the data collected, the AUV's projector energy under each reading of "P_tau is the sum
-of the transmission power from the AUV to node and the navigation power" (l. 936-941),
-and the four efficiencies. With ``--outdir`` it draws the figure the README shows: the
-efficiencies normalised to N = 10 (left) and the energies behind them (right).
+N the data collected, the AUV's projector energy under each reading of "P_tau is the sum of
+the transmission power from the AUV to node and the navigation power" (Section IV, on
+Fig. 9), and the four efficiencies. With ``--outdir`` it draws the figure
+docs/paper-fidelity.md shows: the efficiencies normalised to N = 10 (left) and the energies
+behind them (right).
 
     PYTHONPATH=. python benchmarks/ee_vs_nodes.py --layouts 5 --outdir docs
 """

@@ -4,10 +4,12 @@ On the deterministic paper preset (25 nodes by default, layouts 0-9), the return
 variant of :class:`planners.RewardKMeansTspPlanner` against the MILP's best walk
 (:func:`planners.solve_optimum`, the ``default`` budget unless ``--budget`` says otherwise):
 
-- ``old``: k-means + TSP as before (:class:`planners.KMeansTspPlanner`);
-- ``linger 0``: the old plan without the executor's linger rule;
-- ``grid tour``: the old plan with the TSP over grid moves instead of straight lines;
-- ``steps dwell``: the old hover points and tour, dwell in whole steps by marginal reward;
+- ``coverage``: k-means + TSP with hover points chosen for coverage
+  (:class:`planners.KMeansTspPlanner`);
+- ``linger 0``: the coverage plan without the executor's linger rule;
+- ``grid tour``: the coverage plan with the TSP over grid moves instead of straight lines;
+- ``steps dwell``: the coverage plan's hover points and tour, dwell in whole steps by marginal
+  reward;
 - ``reward+convex``: hover points and K chosen by the reward, the convex dwell program;
 - ``reward+steps``: both changes: the tuned planner's defaults;
 - ``rate_greedy`` for reference.
@@ -36,7 +38,7 @@ from swiptopt.env import AuvSwiptEnv
 
 DETERMINISTIC = {"channel": "none", "failure_prob_min": 0.0, "failure_prob_max": 0.0}
 VARIANTS = {
-    "old": lambda: KMeansTspPlanner(),
+    "coverage": lambda: KMeansTspPlanner(),
     "linger 0": lambda: KMeansTspPlanner(linger_steps=0),
     "grid tour": lambda: KMeansTspPlanner(tour_costs="grid"),
     "steps dwell": lambda: RewardKMeansTspPlanner(selection="coverage", dwell="steps", linger_steps=2),

@@ -1,4 +1,4 @@
-"""Classical baselines on ``swiptopt``'s model, importable as a library (SPEC 6).
+"""Classical baselines on ``swiptopt``'s model, importable as a library.
 
 Everything a user needs is importable from here::
 

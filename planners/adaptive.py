@@ -64,7 +64,7 @@ TINY_FADING: dict[str, Any] = {
     "layout_seed": 2,
 }
 
-#: Kernel steps :func:`adaptive_optimum` may take before it gives up (about 30 us each).
+#: Kernel steps :func:`adaptive_optimum` may take before it gives up.
 ADAPTIVE_STEP_LIMIT = 2_000_000
 
 NO_FADING, ALL_OR_NOTHING = "no fading", "all-or-nothing fading"

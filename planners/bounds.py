@@ -1,4 +1,4 @@
-"""Bounds on what any policy can achieve in a scenario (SPEC 6, ``bounds``).
+"""Bounds on what any policy can achieve in a scenario.
 
 :func:`upper_bound` is valid for every scenario: no policy collects more data than the
 coverable nodes hold, delivers more energy than their storage can take, or earns more
@@ -80,7 +80,7 @@ class UpperBound:
 
 
 def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBound:
-    """Bounds no policy can beat (SPEC 6): node caps, and per-step service for a
+    """Bounds no policy can beat: node caps, and per-step service for a
     deterministic channel.
 
     With ``link = "uplink"`` the energy cap adds what sending every packet can cost a node
@@ -137,8 +137,8 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
 
 
 #: Default ``max_states`` of :func:`exact_optimum`, and the most states the benchmark lets
-#: it explore (by :func:`exact_state_bound`, decided before it runs): about 20 us a state on
-#: the 2-core development machine, so at most about 40 s.
+#: it explore (by :func:`exact_state_bound`, decided before it runs), so that a run's time and
+#: memory are bounded before it starts.
 EXACT_STATE_LIMIT = 2_000_000
 
 

@@ -1,4 +1,4 @@
-"""Hover points by k-means of the node positions (SPEC 6, ``clustering``).
+"""Hover points by k-means of the node positions.
 
 Coverage comes from the simulator kernel's own tables (:func:`swiptopt.kernel.build_tables`),
 which already hold it as a compressed sparse row structure (``cov_ptr``, ``cov_node``,

@@ -1,4 +1,4 @@
-"""The episode as a mixed-integer program: the best walk, a proven bound, the gap (SPEC 6).
+"""The episode as a mixed-integer program: the best walk, a proven bound, the gap.
 
 **Formulation.** The simulator's return depends on a walk only through how many steps end
 in each cell and what each step costs (:mod:`planners.service`): node i receives
@@ -121,9 +121,9 @@ class MilpBudget:
 
 
 #: Named budgets. ``quick`` for tests (root node only, a short polish); ``compare`` for the
-#: benchmark table (root node with HiGHS's cuts, a longer polish: about 10 s of one core
-#: at 25 nodes); ``default`` (branch and bound with HiGHS's sub-MIP heuristics: about a
-#: minute of one core at 25 nodes). The time limits are safety nets far above these.
+#: benchmark table (root node with HiGHS's cuts, a longer polish); ``default`` (branch and
+#: bound with HiGHS's sub-MIP heuristics). The time limits are safety nets far above what
+#: these budgets take (docs/optimum.md, 'On the paper preset', has their times).
 BUDGETS: dict[str, MilpBudget] = {
     "quick": MilpBudget(max_nodes=1, polish_evaluations=2000, cut_rounds=2, sub_mip_heuristics=False, time_limit_s=300.0),
     "compare": MilpBudget(max_nodes=1, polish_evaluations=20_000, cut_rounds=0, sub_mip_heuristics=False, time_limit_s=600.0),

@@ -1,4 +1,4 @@
-"""3D paths for the AUV: OMPL geometric planning around boxes, spheres and the seabed (SPEC 6).
+"""3D paths for the AUV: OMPL geometric planning around boxes, spheres and the seabed.
 
 The idiom stays visible: a 3D ``RealVectorStateSpace`` over the volume, a Python validity
 checker, ``SimpleSetup`` -> objective -> planner -> ``solve(time limit)`` -> simplify, and a
@@ -10,10 +10,9 @@ cost. The checks (:func:`_point_free`, :func:`_segment_free`) and the energy
 (:func:`_segment_energy`) are plain Python that numba compiles (reusing the continuous
 world's compiled seabed lookup), and a motion is checked by one compiled call
 (:func:`_motion_validator_type`: the states OMPL's own discrete validator would test, the
-same answers) instead of one Python call per state. On the harbour's 12 layouts the OMPL
-tour at its former settings (k_max 8, every K) made the same plans in 2.2 s of CPU a layout
-instead of 5.2 s (the slowest layout 2.5 s instead of 11.8 s; provisional, on a shared
-2-core machine). Without numba the same functions run as Python.
+same answers) instead of one Python call per state. ``python benchmarks/continuous_planners.py``
+prints what a harbour layout's tour costs to plan. Without numba the same functions run as
+Python.
 
 Motion checking. OMPL checks a straight motion by testing states spaced at most ``g``
 apart along it (the space's longest valid segment). On its own that can cut a corner or
@@ -67,9 +66,10 @@ PLANNERS: tuple[str, ...] = (
 )
 OBJECTIVES: tuple[str, ...] = ("length", "energy")
 #: The planner used when ``planner=None``: Informed RRT* for both objectives. On path length
-#: it matched RRT*, SORRT* and BIT* (within 0.5-1 % of the optimum round a sphere and round
-#: the harbour's pier at 0.1-0.5 s); for energy, with the objective's admissible heuristic,
-#: it did as well as RRT*/SORRT* and better than BIT* at 0.5-1 s.
+#: it matches RRT*, SORRT* and BIT* round a sphere and round the harbour's pier, close to the
+#: optimum at short time limits (``python benchmarks/bench_paths3d.py`` prints the
+#: comparison); for energy, with the objective's admissible heuristic, it does as well as
+#: RRT*/SORRT* and better than BIT*.
 DEFAULT_PLANNER: dict[str, str] = {"length": "InformedRRTstar", "energy": "InformedRRTstar"}
 #: Planners OMPL provides that this module refuses, with the reason. AORRTC (OMPL 2.0's
 #: ``AOXRRTConnect::findNeighbour``) walks its list of neighbours within a radius until one
@@ -220,8 +220,8 @@ def _segment_energy(ax, ay, az, bx, by, bz, coef):  # type: ignore[no-untyped-de
 
     ``coef`` (:func:`_energy_coefficients`): speed, hotel power, the cubic coefficient of
     eq. 18, the current at the surface and its gradient with depth. Plain Python on floats,
-    compiled by numba (:func:`_energy_function`): numpy costs ~15 us per call and the
-    planners ask for hundreds of thousands of motion costs. A test pins it to
+    compiled by numba (:func:`_energy_function`): numpy's overhead per call outweighs one
+    segment's arithmetic, and the planners ask for hundreds of thousands of motion costs. A test pins it to
     :func:`segment_energy_j`.
     """
     dx = bx - ax

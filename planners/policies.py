@@ -1,4 +1,4 @@
-"""Planners that run in the environment: plans turned into env actions (SPEC 6, ``policies``).
+"""Planners that run in the environment: plans turned into env actions.
 
 Each planner is a policy with ``predict(obs, deterministic=True)`` and
 ``begin_episode(env, obs, info)``, so :func:`swiptopt.evaluate` scores it exactly like an RL

@@ -1,9 +1,10 @@
-"""Power splitting and dwell times at hover points: a closed form and a convex program (SPEC 6).
+"""Power splitting and dwell times at hover points: a closed form and a convex program.
 
-Model (linear harvester, SPEC 3.2). A node whose link has SNR gamma (linear, before
-splitting) and available power P_av, served for t seconds with split ratio alpha, receives
-``t B log2(1 + alpha gamma)`` bits and harvests ``t eta (1 - alpha) P_av`` joules. The value
-of a service is the reward's weighting (SPEC 4, paper eq. 23 without the movement term)::
+Model (the linear harvester of docs/design.md, 'SWIPT at the node (Section II-C)'). A node
+whose link has SNR gamma (linear, before splitting) and available power P_av, served for t
+seconds with split ratio alpha, receives ``t B log2(1 + alpha gamma)`` bits and harvests
+``t eta (1 - alpha) P_av`` joules. The value of a service is the reward's weighting
+(paper eq. 23 without the movement term)::
 
     Gamma bits / D_ref + (1 - Gamma) joules / E_ref.
 
@@ -17,9 +18,8 @@ is concave in alpha, with f'(alpha) = Gamma B gamma / (ln2 (1 + alpha gamma) D_r
 
     alpha* = clip(Gamma B E_ref / (ln2 (1 - Gamma) eta P_av D_ref) - 1 / gamma, 0, 1)
 
-(SPEC 6's formula when D_ref = E_ref = 1); concavity makes the clipped stationary point
-the maximiser on [0, 1]. Limits: Gamma = 1 (or nothing to harvest) gives 1; Gamma = 0 (or
-gamma = 0, nothing to decode) gives 0.
+Concavity makes the clipped stationary point the maximiser on [0, 1]. Limits: Gamma = 1 (or
+nothing to harvest) gives 1; Gamma = 0 (or gamma = 0, nothing to decode) gives 0.
 
 **Many hover points and nodes** (:class:`DwellSplitProblem`, :func:`optimise_dwell_and_split`).
 Dwell t_k >= 0 at hover point k, split alpha_ik for each covered pair. With beta_ik =
@@ -210,7 +210,7 @@ def split_value_rate(
     """Weighted value per second of serving a node with split ``split_ratio``, 1/s (broadcast).
 
     Gamma B log2(1 + alpha gamma) / D_ref + (1 - Gamma) eta (1 - alpha) P_av / E_ref
-    (SPEC 3.2 rate and linear harvester, SPEC 4 weighting); no caps.
+    (the rate of eq. 15 and the linear harvester, weighted as the reward of eq. 23); no caps.
     """
     gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
     alpha = _array("split_ratio", split_ratio, hi=1.0)
@@ -233,8 +233,8 @@ def optimal_split_ratio(
 ) -> np.ndarray:
     """The split ratio alpha* in [0, 1] maximising :func:`split_value_rate`, closed form.
 
-    alpha* = clip(Gamma B E_ref / (ln2 (1 - Gamma) eta P_av D_ref) - 1/gamma, 0, 1) (SPEC 6;
-    derivation in the module docstring). ``snr_linear`` and ``available_power_w`` broadcast
+    alpha* = clip(Gamma B E_ref / (ln2 (1 - Gamma) eta P_av D_ref) - 1/gamma, 0, 1) (derivation
+    in the module docstring). ``snr_linear`` and ``available_power_w`` broadcast
     (e.g. (n_hover, n_nodes)); the result has their broadcast shape. Edge cases: 1 where
     energy is worthless (Gamma = 1, eta = 0 or P_av = 0) and gamma > 0; 0 where data is
     worthless (Gamma = 0) or cannot be decoded (gamma = 0).
@@ -360,8 +360,8 @@ class DwellSplitProblem:
         solver_options: keyword arguments passed to the solver (e.g. tolerances, iteration limits).
         parametrized: compile once for fast re-solves (cvxpy's DPP; the default). False
             compiles the values as constants at every solve, which is much faster for one
-            solve of a large problem (DPP compilation took 4 s against 0.1 s at 660 pairs,
-            84 s at 8,600): :func:`optimise_dwell_and_split` does so.
+            solve of a large problem (DPP's compilation grows far faster with the number of
+            covered pairs than a plain one): :func:`optimise_dwell_and_split` does so.
 
     Conditioning: the program is solved in units of a time scale (the time budget, else the
     longest dwell the energy budget allows), so dwell, split time, information and energy

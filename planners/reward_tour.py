@@ -18,8 +18,9 @@ does not apply. :class:`RewardKMeansTspPlanner` keeps the pipeline and changes i
   reward, counted as the simulator counts it (per-step amounts capped by what each node
   still needs), instead of the convex program's continuous dwell.
 
-``selection="coverage"`` with ``dwell="convex"`` and ``linger_steps=2`` is the old planner,
-unchanged; mixing the settings measures what each choice is worth.
+``selection="coverage"`` with ``dwell="convex"`` and ``linger_steps=2`` plans exactly what
+:class:`~planners.policies.KMeansTspPlanner` plans; mixing the settings measures what each
+choice is worth.
 """
 
 from __future__ import annotations
@@ -197,7 +198,7 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
         return dwell, m.service_value(counts) - cost
 
     def _convex_extra(self, scenario: Any, order: list[int], arrived: list[bool], extra_steps: int) -> list[int]:
-        """The old dwell: the convex program's split of the service time, in whole steps."""
+        """KMeansTspPlanner's dwell: the convex program's split of the service time, in whole steps."""
         from planners.clustering import hover_link
         from planners.power_split import dwell_steps, stop_inputs
 

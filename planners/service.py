@@ -15,14 +15,14 @@ kernel's own physics functions:
   concave function of the total) this model over-estimates what a fixed walk earns on
   average: it is the *expected-rate relaxation*.
 
-With ``link = "uplink"`` (SPEC 3.2b) a node's data in a step depends on the energy it has
-stored, hence on the order of service; the per-step amounts are then the *uplink
-relaxation*: the packets that fit the step at the node's own rate (the energy they cost is
-not modelled) and the charge with all the received power. It over-estimates data, and it
-can under-estimate energy (a node that sends frees storage to be refilled), so it is
-neither exact nor a bound: :attr:`StepModel.exact` is false and :attr:`StepModel.uplink`
-says why; the MILP refuses it (status ``unsupported``), the heuristics plan on it and the
-simulator scores their walks.
+With ``link = "uplink"`` a node's data in a step depends on the energy it has stored, hence
+on the order of service; the per-step amounts are then the *uplink relaxation*: the packets
+that fit the step at the node's own rate (the energy they cost is not modelled) and the
+charge with all the received power. It over-estimates data, and it can under-estimate
+energy (a node that sends frees storage to be refilled), so it is neither exact nor a
+bound: :attr:`StepModel.exact` is false and :attr:`StepModel.uplink` says why; the MILP
+refuses it (status ``unsupported``), the heuristics plan on it and the simulator scores
+their walks.
 
 :mod:`planners.optimal` writes this model as a mixed-integer program, and
 :mod:`planners.rate_greedy` looks ahead with it.

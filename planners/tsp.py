@@ -1,6 +1,6 @@
 """Shortest tour (or open path from the start) through every node of a distance matrix.
 
-The AUV visits the start and the hover points once each (SPEC 6, ``tsp``). Two OR-Tools
+The AUV visits the start and the hover points once each. Two OR-Tools
 back ends, each a thin wrapper that keeps the solver idiom visible:
 
 - ``"exact"``: CP-SAT, one boolean literal per arc tied together by a circuit constraint
@@ -15,7 +15,7 @@ back ends, each a thin wrapper that keeps the solver idiom visible:
 Instances of at most three nodes are solved by enumeration whatever the method (one or two
 candidate orders), reported as method ``"enumeration"``.
 
-Reproducibility (SPEC 6: a result must not depend on the machine's speed or load). Each
+Reproducibility (a result must not depend on the machine's speed or load). Each
 search stops on a deterministic budget: CP-SAT runs one worker with a fixed seed and stops
 at ``deterministic_time`` (CP-SAT's own work measure, the same on every machine); guided
 local search stops after ``solution_limit`` solutions. ``time_limit_s`` is only a
@@ -91,14 +91,15 @@ single worker (level 1, the default, leaves the LP weak for a circuit)."""
 DEFAULT_DETERMINISTIC_TIME = 1.0
 """CP-SAT's ``max_deterministic_time`` when ``deterministic_time`` is not given, in CP-SAT's
 deterministic seconds (a count of its work, not of the clock): five times the most that any
-40-node instance measured needed for its proof (see :data:`AUTO_EXACT_MAX_NODES`). On the
-2-core development machine one deterministic second took 5-10 s of wall-clock time."""
+40-node instance measured needed for its proof (see :data:`AUTO_EXACT_MAX_NODES`). How much
+wall-clock time that is depends on the machine: ``python benchmarks/bench_tsp.py`` prints it."""
 
 DEFAULT_SOLUTION_LIMIT = 100
 """Guided local search's ``solution_limit`` when ``solution_limit`` is not given. With it,
 routing alone reached 0.2 % on eil51, 0 % on berlin52, 0.3 % on st70, 1.7 % on eil76 and
-0.5 % on kroA100 in 0.4-3 s (the gaps move by a percent or two with any change to the
-instance or the costs: guided local search is chaotic, hence the CP-SAT stage of ``auto``)."""
+0.5 % on kroA100 (``python benchmarks/bench_tsp.py`` prints them; the gaps move by a percent
+or two with any change to the instance or the costs: guided local search is chaotic, hence
+the CP-SAT stage of ``auto``)."""
 
 DEFAULT_TIME_LIMIT_S = 60.0
 """Default wall-clock safety net, s: far above what the default budgets need, so it stops a

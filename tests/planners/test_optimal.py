@@ -67,12 +67,12 @@ def test_paper_plan_replays_to_its_objective(paper10):
     assert record["return"] == pytest.approx(result.objective, abs=1e-9)
 
 
-def test_paper_bound_dominates_every_algorithm_and_tightens_the_old_bound(paper10):
+def test_paper_bound_dominates_every_algorithm_and_tightens_the_upper_bound(paper10):
     scenario, result = paper10
-    old = upper_bound(scenario).return_
+    simple = upper_bound(scenario).return_
     assert result.objective <= result.bound + 1e-9
     assert result.lp_bound >= result.bound - 1e-9  # branching only tightens
-    assert result.bound < old - 0.05 * abs(old)  # strictly, and by a margin
+    assert result.bound < simple - 0.05 * abs(simple)  # strictly, and by a margin
     env = AuvSwiptEnv(scenario)
     returns = {}
     for policy in (KMeansTspPlanner(tsp_time_limit_s=0.5), GreedyPlanner(), LawnmowerPlanner(), RateGreedyPlanner()):

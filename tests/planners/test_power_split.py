@@ -167,8 +167,8 @@ def capped_node_value(dwell, alpha, inst, i) -> np.ndarray:
 # ------------------------------------------------------------------------ closed form
 
 
-def test_closed_form_is_specs_formula():
-    # SPEC 6 with D_ref = E_ref = 1: alpha* = Gamma B / (ln2 (1 - Gamma) eta P_av) - 1/gamma
+def test_closed_form_is_the_derived_formula():
+    # with D_ref = E_ref = 1: alpha* = Gamma B / (ln2 (1 - Gamma) eta P_av) - 1/gamma
     gamma, p_av, weight, bw, eta = 1e3, 2e4, 0.4, 4000.0, 0.5
     expected = weight * bw / (LN2 * (1 - weight) * eta * p_av) - 1 / gamma
     assert 0 < expected < 1

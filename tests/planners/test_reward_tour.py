@@ -24,16 +24,16 @@ def test_reaches_85_percent_of_the_milp_best_on_the_paper_preset(layout):
     assert tuned <= best.bound + 1e-9
     # the plan is executed as it was scored: the model's return is the simulator's
     assert tuned == pytest.approx(planner.plan_.details["model_return"], abs=1e-9)
-    # and it is a different league from the old choices
+    # and it is a different league from KMeansTspPlanner's choices (hover points for coverage)
     assert tuned > 1.15 * one_return(KMeansTspPlanner(), env)
 
 
-def test_old_settings_are_the_old_planner():
+def test_coverage_settings_plan_what_kmeans_tsp_plans():
     env = AuvSwiptEnv(Scenario.preset("paper", n_nodes=25, layout_seed=1, **DETERMINISTIC))
-    old = KMeansTspPlanner()
-    legacy = RewardKMeansTspPlanner(selection="coverage", dwell="convex", linger_steps=2)
-    assert one_return(legacy, env) == one_return(old, env)
-    assert legacy.plan_.stops == old.plan_.stops
+    kmeans_tsp = KMeansTspPlanner()
+    coverage = RewardKMeansTspPlanner(selection="coverage", dwell="convex", linger_steps=2)
+    assert one_return(coverage, env) == one_return(kmeans_tsp, env)
+    assert coverage.plan_.stops == kmeans_tsp.plan_.stops
 
 
 def test_each_choice_is_scored_in_the_simulator_model():
