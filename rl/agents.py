@@ -1,4 +1,4 @@
-"""The paper's agents: random, Q-learning and SARSA (SPEC 5).
+"""The paper's agents: random, Q-learning and SARSA (Sections III and IV).
 
 They read like scikit-learn estimators: ``__init__`` stores its arguments, learned state ends
 in ``_`` (``q_table_``, ``epsilon_``, ``rng_``), and each agent has its own seeded generator
@@ -278,7 +278,7 @@ def _json(arrays: dict[str, np.ndarray], name: str) -> Any:
 
 
 class QLearningAgent(_TabularAgent):
-    """Tabular Q-learning (off-policy TD, paper eq. 21, l. 573) with the paper's epsilon schedule."""
+    """Tabular Q-learning (off-policy TD, paper eq. 21) with the paper's epsilon schedule."""
 
     algorithm = "q_learning"
     sarsa = False

@@ -1,4 +1,4 @@
-"""Configuration of the tabular agents (SPEC 5; the paper's Table I as defaults)."""
+"""Configuration of the tabular agents (the paper's Table I as defaults)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The paper's protocol: train on one layout under the stochastic channel, then evaluate
-the greedy policy with :func:`swiptopt.evaluate` on separate seeds (SPEC 5)."""
+the greedy policy with :func:`swiptopt.evaluate` on separate seeds."""
 
 from __future__ import annotations
 

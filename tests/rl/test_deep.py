@@ -262,9 +262,9 @@ def test_bad_configurations_are_config_errors(tmp_path):
     ("sac", {"tau": 0.0}, {}, "hyperparams", "hyperparams.tau = 0.0 must be a number > 0"),
 ])
 def test_settings_sb3_would_fail_on_name_the_right_argument(algorithm, hyperparams, policy_kwargs, field, words):
-    """Refused before training, in one line naming the argument (n_epochs = 0 used to fail
-    mid-training with SB3's UnboundLocalError, net_arch = [-1] with torch's RuntimeError, and
-    policy_kwargs errors were blamed on hyperparams)."""
+    """Refused before training, in one line naming the argument (unchecked, n_epochs = 0 fails
+    mid-training with SB3's UnboundLocalError and net_arch = [-1] with torch's RuntimeError),
+    and a policy_kwargs error names policy_kwargs, not hyperparams."""
     world = "continuous" if algorithm == "sac" else "grid"
     scenario = swiptopt.Scenario.preset("harbour", n_nodes=3) if algorithm == "sac" else TINY
     with pytest.raises(swiptopt.ConfigError) as info:
