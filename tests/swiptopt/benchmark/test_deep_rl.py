@@ -8,7 +8,8 @@ import textwrap
 
 import pytest
 
-from swiptopt.benchmark import tables
+from swiptopt.benchmark import algorithms, tables
+from swiptopt.benchmark import experiment as experiment_module
 from swiptopt.benchmark.algorithms import ALGORITHMS, get_algorithm, resolve_settings
 from swiptopt.benchmark.experiment import MAX_LAYOUT, Experiment, Task
 from swiptopt.benchmark.runner import execute
@@ -343,6 +344,18 @@ def test_an_algorithm_from_an_installed_entry_point_runs(tmp_path, monkeypatch):
     assert all(r["length"] == experiment.scenario_for({}, 0).episode_steps for r in result["records"])
     with pytest.raises(ConfigError, match="unknown algorithm 'hover_e'.*did you mean 'hover_ep'"):
         tiny(algorithms={"hover_e": {}})
+    # reading the store looks up no entry point: the rows come from the stored data
+    def refuse(*args):
+        raise AssertionError("reading a store loaded an algorithm")
+
+    monkeypatch.setattr(algorithms, "_entry_point", refuse)
+    monkeypatch.setattr(algorithms, "load_plugin", refuse)
+    monkeypatch.setattr(experiment_module, "load_plugin", refuse)
+    with ResultStore(tmp_path / "s.sqlite", readonly=True) as s:
+        (stored,) = s.experiments()
+        rows, missing = tables.aggregate(stored, s)
+    assert missing == 0 and [r.algorithm for r in rows] == ["hover_ep"]
+    assert [t.key for t in stored.tasks()] == [t.key for t in experiment.tasks()]
 
 
 # ------------------------------------------------------------------ the models directory
