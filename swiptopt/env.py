@@ -23,6 +23,7 @@ from swiptopt.errors import ConfigError
 from swiptopt.jit import numba_available
 from swiptopt.metrics import episode_metrics
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 OBSERVATIONS = ("tabular", "vector")
 BACKENDS = ("auto", "compiled", "python")
@@ -88,10 +89,12 @@ class EpisodeMetrics(Mapping):
         return EpisodeMetrics, (self._values,)
 
 
+#: What a layout seed may hold (:func:`swiptopt.validation.check_value`).
+LAYOUT_SEED = Spec(kind="int", lo=0, hi=_MAX_LAYOUT_SEED, strict=True, doc="the seed of a node layout")
+
+
 def _layout_seed(value: Any, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= _MAX_LAYOUT_SEED:
-        raise ConfigError(f"{name} = {value!r} must be an integer in [0, 2**63 - 1]", "layout_seed")
-    return int(value)
+    return check_value(name, value, LAYOUT_SEED, field="layout_seed")
 
 
 def check_layout_seeds(value: Any) -> Sequence[int] | None:
@@ -161,10 +164,9 @@ class LayoutEnv(gym.Env):
             scenario = Scenario.preset(preset, **overrides)
         elif overrides:
             scenario = scenario.replace(**overrides)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        render_modes = Spec(kind="str", choices=tuple(self.metadata["render_modes"]), optional=True)
+        check_value("render_mode", render_mode, render_modes)
+        check_value("backend", backend, Spec(kind="str", choices=BACKENDS))
         self.layout_seeds = check_layout_seeds(layout_seeds)
         self.scenario = scenario
         self._scenario0 = scenario  # the layouts of other episodes are variations of it
@@ -293,8 +295,7 @@ class AuvSwiptEnv(LayoutEnv):
         layout_seeds: Sequence[int] | None = None,
         **overrides: Any,
     ):
-        if observation not in OBSERVATIONS:
-            raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
+        check_value("observation", observation, Spec(kind="str", choices=OBSERVATIONS))
         backend = self._setup(scenario, preset, overrides, render_mode, backend, layout_seeds)
         scenario = self.scenario
         self.observation = observation

@@ -18,6 +18,7 @@ import numpy as np
 from swiptopt.env import INFO_KEY
 from swiptopt.errors import ConfigError
 from swiptopt.metrics import EPISODE_METRICS
+from swiptopt.validation import Spec, check_value
 
 
 @runtime_checkable
@@ -91,6 +92,10 @@ class EvaluationResult:
         return pd.DataFrame.from_records(self.records)
 
 
+#: What :func:`evaluate`'s ``episodes`` may hold (:func:`swiptopt.validation.check_value`).
+EPISODES = Spec(kind="int", lo=1, strict=True, doc="episodes to run")
+
+
 def evaluate(policy: Policy, env: Any, episodes: int, seed: int = 0) -> EvaluationResult:
     """Run ``episodes`` episodes, episode i reset with seed ``seed + i``, greedy actions.
 
@@ -112,8 +117,7 @@ def evaluate(policy: Policy, env: Any, episodes: int, seed: int = 0) -> Evaluati
     then receives a batch of n observations; policies that plan per episode
     (``begin_episode``) need a single env.
     """
-    if not isinstance(episodes, int) or isinstance(episodes, bool) or episodes < 1:
-        raise ConfigError(f"episodes = {episodes!r} must be a positive integer", "episodes")
+    episodes = check_value("episodes", episodes, EPISODES)
     if not hasattr(policy, "predict"):
         raise ConfigError(f"policy {type(policy).__name__} has no predict(obs, deterministic) method", "policy")
     vector = _vector_kind(env)

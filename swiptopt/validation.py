@@ -3,8 +3,8 @@
 One :class:`Spec` describes what a scalar setting may hold; :func:`check_value` checks a
 value against it and returns it normalised (an integral float for an integer setting becomes
 an int, an int for a float setting a float), or raises one error that names the setting, the
-value and what is allowed. Scenario fields and the benchmark's algorithm settings are both
-checked here.
+value and what is allowed. Scenario fields, the benchmark's algorithm settings and the
+arguments of the planners, the agents and the environments are all checked here.
 """
 
 from __future__ import annotations
@@ -27,7 +27,9 @@ class Spec:
     ``kind`` is the type (``float``, ``int``, ``str``, ``bool``; scenarios add kinds of their
     own); numbers lie in the interval from ``lo`` to ``hi`` (``None``: unbounded; ``*_open``:
     the end itself excluded); strings with ``choices`` must be one of them; ``optional``
-    allows ``None`` (the setting left out).
+    allows ``None`` (the setting left out). An ``int`` setting takes an integral float
+    (``3.0``) as its integer unless ``strict``: then only integers (Python's or numpy's) are
+    allowed, for arguments a caller passes in code rather than reads from a file.
     """
 
     unit: str = ""
@@ -39,6 +41,7 @@ class Spec:
     kind: str = "float"
     choices: tuple[str, ...] = ()
     optional: bool = False
+    strict: bool = False
 
     def allowed(self, hi: float | None = None) -> str:
         """What the setting may hold, in words; ``hi`` replaces the spec's upper end."""
@@ -104,7 +107,7 @@ def check_value(
         raise error(f"{name} = {value!r} is not allowed: must be {spec.allowed(hi)}", field)
     if kind == "int":
         if isinstance(value, (float, np.floating)):
-            if not float(value).is_integer():
+            if spec.strict or not float(value).is_integer():
                 raise error(f"{name} = {value!r} is not allowed: must be {spec.allowed(hi)}", field)
         value = int(value)
     else:

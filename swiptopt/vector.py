@@ -45,6 +45,7 @@ from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.jit import numba_available
 from swiptopt.kernel import StepArrays, step_tabular, step_vector
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 from swiptopt.worlds import CONTINUOUS, GRID, OBSERVATIONS, check_world
 
 #: The default preset of each world (the single envs' defaults).
@@ -296,10 +297,11 @@ class _ContinuousCopies(_Copies):
 # ------------------------------------------------------------------ checks
 
 
-def _check_num_envs(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ConfigError(f"num_envs = {value!r} must be an integer >= 1", "num_envs")
-    return int(value)
+#: What the vector env's ``num_envs`` and ``backend`` may hold (:func:`swiptopt.validation.check_value`).
+ARGUMENTS = {
+    "num_envs": Spec(kind="int", lo=1, strict=True, doc="copies of the environment stepped together"),
+    "backend": Spec(kind="str", choices=BACKENDS, doc="how the kernel runs: compiled by numba, in Python, or 'auto'"),
+}
 
 
 def _check_autoreset_mode(value: Any) -> AutoresetMode:
@@ -420,7 +422,7 @@ class AuvSwiptVectorEnv(VectorEnv):
         render_mode: str | None = None,
         **overrides: Any,
     ):
-        self.num_envs = n = _check_num_envs(num_envs)
+        self.num_envs = n = check_value("num_envs", num_envs, ARGUMENTS["num_envs"])
         self.world = world = check_world(world)
         self.autoreset_mode = _check_autoreset_mode(autoreset_mode)
         observation = OBSERVATIONS[world][0] if observation is None else observation
@@ -430,8 +432,7 @@ class AuvSwiptVectorEnv(VectorEnv):
                 f"{', '.join(map(repr, OBSERVATIONS[world]))}",
                 "observation",
             )
-        if backend not in BACKENDS:
-            raise ConfigError(f"backend = {backend!r} must be one of {BACKENDS}", "backend")
+        check_value("backend", backend, ARGUMENTS["backend"])
         if render_mode is not None:
             raise ConfigError(f"render_mode = {render_mode!r}: the vector env does not render (use None)", "render_mode")
         if "max_episode_steps" in overrides:
