@@ -30,6 +30,7 @@ from swiptopt.errors import ConfigError
 from swiptopt.harvesting import harvest_from_input_array_w
 from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 
 #: Policy classes (docs/optimum.md): a plan whose actions are fixed before the episode, and
@@ -62,8 +63,7 @@ class PolicyBound:
     """:data:`ADAPTIVE` (every non-anticipative policy) or :data:`OPEN_LOOP` (open-loop plans only)."""
 
     def __post_init__(self) -> None:
-        if self.holds_for not in POLICY_CLASSES:
-            raise ConfigError(f"holds_for = {self.holds_for!r} must be one of {POLICY_CLASSES}", "holds_for")
+        check_value("holds_for", self.holds_for, Spec(kind="str", choices=POLICY_CLASSES))
 
     def holds(self, policy_class: str) -> bool:
         """Whether the bound holds for a policy of ``policy_class``."""

@@ -9,7 +9,6 @@ x nodes. scikit-learn and scipy are imported inside the functions.
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,9 +17,9 @@ import numpy as np
 from swiptopt import kernel as K
 from swiptopt.acoustics import db_to_linear
 from swiptopt.coverage import slant_distances_m
-from swiptopt.errors import ConfigError
 from swiptopt.link import link_budget
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,6 +71,11 @@ def best_hover_cell(covered: Any, power: Any, group: np.ndarray) -> int:
     return int(np.argmax(score))
 
 
+#: What ``k`` and ``max_k`` of :func:`kmeans_hover_points` may hold: a number of groups, or
+#: ``None`` (``k``: choose it; ``max_k``: no limit).
+GROUP_COUNT = Spec(kind="int", lo=1, strict=True, optional=True, doc="a number of k-means groups")
+
+
 def kmeans_hover_points(
     scenario: Scenario,
     k: int | None = None,
@@ -88,17 +92,15 @@ def kmeans_hover_points(
     (label -1); with none coverable the result has K = 0. Bad ``k`` or ``max_k`` raise
     :class:`~swiptopt.errors.ConfigError` naming it.
     """
-    if max_k is not None and (isinstance(max_k, bool) or not isinstance(max_k, numbers.Integral) or max_k < 1):
-        raise ConfigError(f"max_k = {max_k!r} must be a positive integer (or None for no limit)", "max_k")
-    if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 1):
-        raise ConfigError(f"k = {k!r} must be a positive integer (or None to choose it)", "k")
+    max_k = check_value("max_k", max_k, GROUP_COUNT)
+    k = check_value("k", k, GROUP_COUNT)
     tables = K.build_tables(scenario) if tables is None else tables
     coverable = np.unique(tables.cov_node)
     labels = np.full(scenario.n_nodes, -1, dtype=np.int64)
     if coverable.size == 0:
         return HoverPoints(np.zeros(0, dtype=np.int64), labels, np.zeros((0, scenario.n_nodes), bool), 0)
-    if k is not None and k > coverable.size:
-        raise ConfigError(f"k = {k!r} must be an integer in [1, {coverable.size}] (the coverable nodes)", "k")
+    if k is not None:
+        k = check_value("k", k, GROUP_COUNT, hi=coverable.size)  # at most one group per coverable node
 
     from sklearn.cluster import KMeans
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -41,6 +41,7 @@ from planners.service import StepModel, step_model
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 
 @dataclass(frozen=True)
@@ -59,19 +60,18 @@ class HindsightBudget:
     time_limit_s: float = 600.0
     """Safety net per table only: hitting it is reported, as results then depend on the machine."""
 
+    #: What each field may hold, checked at construction (:func:`swiptopt.validation.check_value`).
+    FIELDS: ClassVar[dict[str, Spec]] = {
+        "samples": Spec(kind="int", lo=2, strict=True, doc="at least two: a confidence interval needs two"),
+        "seed": Spec(kind="int", lo=0, strict=True),
+        "max_nodes": Spec(kind="int", lo=0, strict=True),
+        "rel_gap": Spec(lo=0),
+        "time_limit_s": Spec(lo=0, lo_open=True, unit="s"),
+    }
+
     def __post_init__(self) -> None:
-        for name in ("samples", "seed", "max_nodes"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-                raise ConfigError(f"{name} = {value!r} must be a non-negative integer", name)
-        if self.samples < 2:
-            raise ConfigError(f"samples = {self.samples} must be at least 2 (a confidence interval needs two)", "samples")
-        for name in ("rel_gap", "time_limit_s"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ConfigError(f"{name} = {value!r} must be a finite number >= 0", name)
-        if self.time_limit_s == 0:
-            raise ConfigError("time_limit_s = 0 leaves no time to solve: give a positive number", "time_limit_s")
+        for name, spec in self.FIELDS.items():
+            check_value(name, getattr(self, name), spec)
 
 
 @dataclass(frozen=True, eq=False)

@@ -68,7 +68,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -77,6 +77,7 @@ from planners.service import StepModel, step_model
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 #: Statuses of :class:`OptimumResult`.
 STATUSES = ("optimal", "feasible", "no_solution", "unsupported", "error")
@@ -105,19 +106,21 @@ class MilpBudget:
     max_arcs: int = 200_000
     """Larger reduced graphs are reported ``unsupported`` rather than attempted."""
 
+    #: What each field may hold, checked at construction (:func:`swiptopt.validation.check_value`).
+    FIELDS: ClassVar[dict[str, Spec]] = {
+        "max_nodes": Spec(kind="int", lo=0, strict=True),
+        "polish_evaluations": Spec(kind="int", lo=0, strict=True),
+        "cut_rounds": Spec(kind="int", lo=0, strict=True),
+        "seed": Spec(kind="int", lo=0, strict=True),
+        "max_arcs": Spec(kind="int", lo=0, strict=True),
+        "rel_gap": Spec(lo=0),
+        "time_limit_s": Spec(lo=0, lo_open=True, unit="s"),
+        "sub_mip_heuristics": Spec(kind="bool"),
+    }
+
     def __post_init__(self) -> None:
-        for name in ("max_nodes", "polish_evaluations", "cut_rounds", "seed", "max_arcs"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-                raise ConfigError(f"{name} = {value!r} must be a non-negative integer", name)
-        for name in ("rel_gap", "time_limit_s"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ConfigError(f"{name} = {value!r} must be a finite number >= 0", name)
-        if not isinstance(self.sub_mip_heuristics, bool):
-            raise ConfigError(f"sub_mip_heuristics = {self.sub_mip_heuristics!r} must be true or false", "sub_mip_heuristics")
-        if self.time_limit_s == 0:
-            raise ConfigError("time_limit_s = 0 leaves no time to solve: give a positive number", "time_limit_s")
+        for name, spec in self.FIELDS.items():
+            check_value(name, getattr(self, name), spec)
 
 
 #: Named budgets. ``quick`` for tests (root node only, a short polish); ``compare`` for the

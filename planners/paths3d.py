@@ -45,6 +45,7 @@ from swiptopt import auv, fpmath
 from swiptopt.continuous import _seabed_depth
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Box, Scenario, Sphere
+from swiptopt.validation import Spec, check_value
 
 #: Planner names this module knows, in the order they are listed; which of them exist
 #: depends on the installed OMPL (see :func:`available_planners`).
@@ -65,6 +66,17 @@ PLANNERS: tuple[str, ...] = (
     "LBKPIECE1",
 )
 OBJECTIVES: tuple[str, ...] = ("length", "energy")
+#: What the scalar arguments of :func:`plan_path_3d` may hold (``clearance_m`` also that of
+#: :func:`segments_free`), checked by :func:`swiptopt.validation.check_value`.
+ARGUMENTS = {
+    "time_limit_s": Spec(lo=0, lo_open=True, unit="s", doc="the wall-clock limit of OMPL's solve"),
+    "clearance_m": Spec(lo=0, unit="m", doc="the distance kept from every obstacle"),
+    "objective": Spec(kind="str", choices=OBJECTIVES, doc="what the path minimises"),
+    "iterations": Spec(kind="int", lo=1, hi=2**31, hi_open=True, strict=True, optional=True,
+                       doc="a deterministic budget of planner iterations (None: the wall-clock limit)"),
+    "seed": Spec(kind="int", lo=1, hi=2**32, hi_open=True, strict=True, optional=True,
+                 doc="OMPL's process-wide seed (OMPL replaces 0 by 1)"),
+}
 #: The planner used when ``planner=None``: Informed RRT* for both objectives. On path length
 #: it matches RRT*, SORRT* and BIT* round a sphere and round the harbour's pier, close to the
 #: optimum at short time limits (``python benchmarks/bench_paths3d.py`` prints the
@@ -615,7 +627,7 @@ def segments_free(starts_m: Any, ends_m: Any, scenario: Scenario, *, clearance_m
     two tested states is missed, however thin the obstacle (``g`` is the planner's default
     spacing for the scenario). Both ends inside the volume keep the whole segment in it.
     """
-    clearance_m = _positive("clearance_m", clearance_m, allow_zero=True)
+    clearance_m = check_value("clearance_m", clearance_m, ARGUMENTS["clearance_m"])
     world, _ = _world_from(scenario, None)
     a = np.asarray(starts_m, dtype=float).reshape(-1, 3)
     b = np.asarray(ends_m, dtype=float).reshape(-1, 3)
@@ -635,14 +647,6 @@ def segments_free(starts_m: Any, ends_m: Any, scenario: Scenario, *, clearance_m
 
 _process_seed: int | None = None
 _planned_unseeded = False
-
-
-def _checked_seed(seed: Any) -> int | None:
-    if seed is None:
-        return None
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 1 <= seed < 2**32:
-        raise ConfigError(f"seed = {seed!r} must be an integer in [1, 2**32) (OMPL replaces 0 by 1)", "seed")
-    return int(seed)
 
 
 def _apply_seed(seed: int | None) -> None:
@@ -681,9 +685,6 @@ def available_planners() -> tuple[str, ...]:
 
 
 def _choose_planner(planner: str | None, objective: str) -> str:
-    if objective not in OBJECTIVES:
-        choices = ", ".join(map(repr, OBJECTIVES))
-        raise ConfigError(f"objective = {objective!r} is not allowed: must be one of {choices}", "objective")
     name = DEFAULT_PLANNER[objective] if planner is None else planner
     available = available_planners()
     if name in CRASHING_PLANNERS:
@@ -700,15 +701,6 @@ def _choose_planner(planner: str | None, objective: str) -> str:
             "planner",
         )
     return name
-
-
-def _checked_iterations(iterations: Any) -> int | None:
-    if iterations is None:
-        return None
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= iterations < 2**31:
-        raise ConfigError(f"iterations = {iterations!r} must be an integer in [1, 2**31) (or None for the time limit)",
-                          "iterations")
-    return int(iterations)
 
 
 def _counting_condition(budget: int) -> Any:
@@ -729,15 +721,6 @@ def _counting_condition(budget: int) -> Any:
         return calls > budget
 
     return ob.PlannerTerminationCondition(spent)
-
-
-def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
-    number = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-    ok = number and math.isfinite(value)
-    if not ok or value < 0 or (value == 0 and not allow_zero):
-        allowed = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"{name} = {value!r} must be a finite number {allowed}", name)
-    return float(value)
 
 
 def plan_path_3d(
@@ -807,10 +790,11 @@ def plan_path_3d(
     Returns a :class:`PathResult`; no path within the limit is a status, not an exception.
     Sets OMPL's log level to ``LOG_NONE`` (process-wide) so that nothing prints.
     """
-    time_limit_s = _positive("time_limit_s", time_limit_s)
-    clearance_m = _positive("clearance_m", clearance_m, allow_zero=True)
-    iterations = _checked_iterations(iterations)
-    seed = _checked_seed(seed)
+    time_limit_s = check_value("time_limit_s", time_limit_s, ARGUMENTS["time_limit_s"])
+    clearance_m = check_value("clearance_m", clearance_m, ARGUMENTS["clearance_m"])
+    iterations = check_value("iterations", iterations, ARGUMENTS["iterations"])
+    seed = check_value("seed", seed, ARGUMENTS["seed"])
+    objective = check_value("objective", objective, ARGUMENTS["objective"])
     name = _choose_planner(planner, objective)
     world, scenario = _world_from(scenario_or_obstacles, bounds)
     if objective == "energy" and scenario is None:

@@ -29,8 +29,17 @@ from planners.grid import bfs_distances
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 TOUR_COSTS = ("auto", "euclidean", "grid", "ompl")
+
+#: What the planners' checked arguments may hold (:func:`swiptopt.validation.check_value`).
+ARGUMENTS = {
+    "linger_steps": Spec(kind="int", lo=0, strict=True, unit="steps",
+                         doc="extra hover steps while covered nodes hold data"),
+    "max_dwell_steps": Spec(kind="int", lo=1, strict=True, unit="steps", doc="the longest hover at one node"),
+    "tour_costs": Spec(kind="str", choices=TOUR_COSTS, doc="what the tour's arc costs measure"),
+}
 
 # the move that undoes each move (used to walk a BFS tree grown from the target)
 _REVERSE = np.array([1, 0, 3, 2, 5, 4, 6])
@@ -104,9 +113,7 @@ class _Executor:
     """Follows a :class:`Plan` in the environment, one action per ``predict``."""
 
     def __init__(self, *, linger_steps: int = 2):
-        if isinstance(linger_steps, bool) or not isinstance(linger_steps, int) or linger_steps < 0:
-            raise ConfigError(f"linger_steps = {linger_steps!r} must be a non-negative integer", "linger_steps")
-        self.linger_steps = linger_steps
+        self.linger_steps = check_value("linger_steps", linger_steps, ARGUMENTS["linger_steps"])
         self._env: Any = None
         self._trees: dict[int, np.ndarray] = {}
 
@@ -201,8 +208,7 @@ class KMeansTspPlanner(_Executor):
         linger_steps: int = 2,
     ):
         super().__init__(linger_steps=linger_steps)
-        if tour_costs not in TOUR_COSTS:
-            raise ConfigError(f"tour_costs = {tour_costs!r} is not one of {', '.join(TOUR_COSTS)}", "tour_costs")
+        check_value("tour_costs", tour_costs, ARGUMENTS["tour_costs"])
         self.k = k
         self.tsp_method = tsp_method
         self.tsp_time_limit_s = tsp_time_limit_s
@@ -335,9 +341,7 @@ class GreedyPlanner(_Executor):
 
     def __init__(self, *, max_dwell_steps: int = 8):
         super().__init__(linger_steps=0)
-        if isinstance(max_dwell_steps, bool) or not isinstance(max_dwell_steps, int) or max_dwell_steps < 1:
-            raise ConfigError(f"max_dwell_steps = {max_dwell_steps!r} must be a positive integer", "max_dwell_steps")
-        self.max_dwell_steps = max_dwell_steps
+        self.max_dwell_steps = check_value("max_dwell_steps", max_dwell_steps, ARGUMENTS["max_dwell_steps"])
 
     def make_plan(self, env: Any) -> Plan:
         where = reachable(env.tables)

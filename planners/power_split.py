@@ -79,6 +79,7 @@ from swiptopt.acoustics import db_to_linear
 from swiptopt.coverage import covered_nodes, slant_distances_m
 from swiptopt.errors import ConfigError
 from swiptopt.link import auv_power, link_budget, reward_references
+from swiptopt.validation import Spec, check_value
 
 if TYPE_CHECKING:
     cp = _cvxpy()
@@ -153,17 +154,23 @@ def _cvxpy():  # type: ignore[no-untyped-def]
 
     return cvxpy
 
-def _scalar(name: str, value: Any, *, lo: float = 0.0, hi: float = math.inf, lo_open: bool = False) -> float:
-    """A finite number in [lo, hi] (or (lo, hi] with ``lo_open``), else ConfigError naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ConfigError(f"{name} = {value!r} must be a number", name)
-    x = float(value)
-    too_low = x <= lo if lo_open else x < lo
-    if not math.isfinite(x) or too_low or x > hi:
-        left = "(" if lo_open else "["
-        right = "]" if math.isfinite(hi) else ")"
-        raise ConfigError(f"{name} = {value!r} is out of range: must be in {left}{lo:g}, {hi:g}{right}", name)
-    return x
+#: What the scalar arguments of the model and the programs may hold, checked by
+#: :func:`swiptopt.validation.check_value` (a finite number in the range given).
+SCALARS = {
+    "reward_weight": Spec(lo=0, hi=1, doc="Gamma, the weight of data against energy"),
+    "bandwidth_hz": Spec(lo=0, lo_open=True, unit="Hz", doc="the band B"),
+    "efficiency": Spec(lo=0, hi=1, doc="eta, the harvester's efficiency"),
+    "data_ref_bits": Spec(lo=0, lo_open=True, unit="bit", doc="D_ref, the reward's data reference"),
+    "energy_ref_j": Spec(lo=0, lo_open=True, unit="J", doc="E_ref, the reward's energy reference"),
+    "split_ratio": Spec(lo=0, hi=1, doc="alpha, the share of the signal sent to the decoder"),
+    "mission_time_s": Spec(lo=0, unit="s", doc="the time budget"),
+    "energy_budget_j": Spec(lo=0, unit="J", doc="the energy budget"),
+}
+
+
+def _scalar(name: str, value: Any) -> float:
+    """``value`` checked against :data:`SCALARS` ``[name]``, as a float; else ConfigError naming it."""
+    return check_value(name, value, SCALARS[name])
 
 
 def _array(name: str, value: Any, shape: tuple[int, ...] | None = None, *, hi: float = math.inf) -> np.ndarray:
@@ -185,11 +192,11 @@ def _model_scalars(
     reward_weight: float, bandwidth_hz: float, efficiency: float, data_ref_bits: float, energy_ref_j: float
 ) -> tuple[float, float, float, float, float]:
     return (
-        _scalar("reward_weight", reward_weight, hi=1.0),
-        _scalar("bandwidth_hz", bandwidth_hz, lo_open=True),
-        _scalar("efficiency", efficiency, hi=1.0),
-        _scalar("data_ref_bits", data_ref_bits, lo_open=True),
-        _scalar("energy_ref_j", energy_ref_j, lo_open=True),
+        _scalar("reward_weight", reward_weight),
+        _scalar("bandwidth_hz", bandwidth_hz),
+        _scalar("efficiency", efficiency),
+        _scalar("data_ref_bits", data_ref_bits),
+        _scalar("energy_ref_j", energy_ref_j),
     )
 
 
@@ -534,7 +541,7 @@ class DwellSplitProblem:
         if self.n_pairs == 0:
             return _nothing_covered(shape)
         if split_ratio is not None:
-            alpha = _scalar("split_ratio", split_ratio, hi=1.0)
+            alpha = _scalar("split_ratio", split_ratio)
             return self._solve_fixed_split(alpha, gamma, p_av, data, room, min_energy, budgets, gw, bw, eta, d_ref, e_ref)
 
         solver = self.solver or default_solver()

@@ -33,13 +33,20 @@ from planners.policies import KMeansTspPlanner, Plan, Stop
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
 from swiptopt import fpmath
-from swiptopt.errors import ConfigError
+from swiptopt.validation import Spec, check_value
 
 SELECTIONS = ("reward", "coverage")
 DWELLS = ("steps", "convex")
 
 #: Held-Karp orders at most this many stops (13 nodes with the start): exact and fast.
 MAX_EXACT_STOPS = 12
+
+#: What the planner's own checked arguments may hold (:func:`swiptopt.validation.check_value`).
+ARGUMENTS = {
+    "selection": Spec(kind="str", choices=SELECTIONS, doc="how the hover points and K are chosen"),
+    "dwell": Spec(kind="str", choices=DWELLS, doc="how the service time is split among the stops"),
+    "k_max": Spec(kind="int", lo=1, strict=True, doc="the most k-means groups tried"),
+}
 
 
 class RewardKMeansTspPlanner(KMeansTspPlanner):
@@ -63,15 +70,9 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
         **tsp_settings: Any,
     ):
         super().__init__(k=k, seed=seed, linger_steps=linger_steps, **tsp_settings)
-        if selection not in SELECTIONS:
-            raise ConfigError(f"selection = {selection!r} is not one of {', '.join(SELECTIONS)}", "selection")
-        if dwell not in DWELLS:
-            raise ConfigError(f"dwell = {dwell!r} is not one of {', '.join(DWELLS)}", "dwell")
-        if isinstance(k_max, bool) or not isinstance(k_max, int) or k_max < 1:
-            raise ConfigError(f"k_max = {k_max!r} must be a positive integer", "k_max")
-        self.selection = selection
-        self.dwell = dwell
-        self.k_max = k_max
+        self.selection = check_value("selection", selection, ARGUMENTS["selection"])
+        self.dwell = check_value("dwell", dwell, ARGUMENTS["dwell"])
+        self.k_max = check_value("k_max", k_max, ARGUMENTS["k_max"])
 
     def make_plan(self, env: Any) -> Plan:
         if self.selection == "coverage" and self.dwell == "convex":

@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import numbers
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -58,9 +57,20 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from swiptopt.errors import ConfigError
+from swiptopt.validation import Spec, check_value
 
 METHODS = ("auto", "exact", "routing")
 """Accepted values of ``solve_tsp(method=...)``."""
+
+ARGUMENTS = {
+    "start": Spec(kind="int", lo=0, strict=True, doc="the first node of the order (its upper end: n - 1)"),
+    "method": Spec(kind="str", choices=METHODS),
+    "time_limit_s": Spec(lo=0, lo_open=True, unit="s", doc="wall-clock safety net"),
+    "deterministic_time": Spec(lo=0, lo_open=True, unit="deterministic s", doc="CP-SAT's work budget"),
+    "solution_limit": Spec(kind="int", lo=1, strict=True, doc="guided local search's solution budget"),
+}
+"""What the scalar arguments of :func:`solve_tsp` and :func:`held_karp` may hold, checked by
+:func:`swiptopt.validation.check_value`."""
 
 STATUSES = ("optimal", "feasible", "time_limit", "no_solution")
 """Values of :attr:`TspResult.status`."""
@@ -205,16 +215,16 @@ def solve_tsp(
     matrix = _validated_matrix(distance_matrix)
     n = matrix.shape[0]
     start = _validated_start(start, n)
-    if method not in METHODS:
-        raise ConfigError(f"method must be one of {', '.join(METHODS)}; got {method!r}", "method")
-    time_limit_s = _positive_real("time_limit_s", time_limit_s, "seconds")
-    work_s = _positive_real(
+    method = check_value("method", method, ARGUMENTS["method"])
+    time_limit_s = check_value("time_limit_s", time_limit_s, ARGUMENTS["time_limit_s"])
+    work_s = check_value(
         "deterministic_time", DEFAULT_DETERMINISTIC_TIME if deterministic_time is None else deterministic_time,
-        "deterministic seconds",
+        ARGUMENTS["deterministic_time"],
     )
-    limit = DEFAULT_SOLUTION_LIMIT if solution_limit is None else solution_limit
-    if isinstance(limit, bool) or not isinstance(limit, numbers.Integral) or limit < 1:
-        raise ConfigError(f"solution_limit must be a positive integer, got {solution_limit!r}", "solution_limit")
+    limit = check_value(
+        "solution_limit", DEFAULT_SOLUTION_LIMIT if solution_limit is None else solution_limit,
+        ARGUMENTS["solution_limit"],
+    )
     closed = bool(closed)
 
     if n <= 3:
@@ -309,16 +319,7 @@ def _validated_matrix(distance_matrix: ArrayLike) -> np.ndarray:
 
 def _validated_start(start: int, n: int) -> int:
     """``start`` as an int in 0..n-1 (bools and non-integers refused), or ConfigError."""
-    if isinstance(start, bool) or not isinstance(start, numbers.Integral) or not 0 <= start < n:
-        raise ConfigError(f"start must be an integer node index in 0..{n - 1}, got {start!r}", "start")
-    return int(start)
-
-
-def _positive_real(name: str, value: object, unit: str) -> float:
-    """``value`` as a positive finite float, or ConfigError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value > 0):
-        raise ConfigError(f"{name} must be a positive finite number of {unit}, got {value!r}", name)
-    return float(value)
+    return check_value("start", start, ARGUMENTS["start"], hi=n - 1)
 
 
 def tie_range(n: int) -> int:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import numbers
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, ClassVar, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -23,6 +23,7 @@ from gymnasium import spaces
 from swiptopt import kernel as K
 from swiptopt.env import INFO_KEY, LAYOUT_CACHE_SIZE
 from swiptopt.errors import ConfigError
+from swiptopt.validation import Spec, check_value
 
 #: ``Dwell.until`` values: ``"data"`` ends the dwell once the stop's covered nodes hold no
 #: data; ``"served"`` once they need nothing more (the kernel's ``is_served``).
@@ -48,11 +49,16 @@ class Dwell:
     steps: int
     until: str | None = None
 
+    #: What each field may hold, checked at construction (an error names ``dwells``, the
+    #: setting that holds the dwells).
+    FIELDS: ClassVar[dict[str, Spec]] = {
+        "steps": Spec(kind="int", lo=1, strict=True, unit="steps"),
+        "until": Spec(kind="str", choices=UNTIL, optional=True),
+    }
+
     def __post_init__(self) -> None:
-        if isinstance(self.steps, bool) or not isinstance(self.steps, numbers.Integral) or self.steps < 1:
-            raise ConfigError(f"Dwell.steps = {self.steps!r} must be an integer >= 1", "dwells")
-        if self.until is not None and self.until not in UNTIL:
-            raise ConfigError(f"Dwell.until = {self.until!r} must be None or one of {', '.join(UNTIL)}", "dwells")
+        for name, spec in self.FIELDS.items():
+            check_value(f"Dwell.{name}", getattr(self, name), spec, field="dwells")
 
     @property
     def min_steps(self) -> int:
@@ -80,12 +86,6 @@ def check_dwells(dwells: Any) -> tuple[Dwell, ...]:
     if len(set(out)) != len(out):
         raise ConfigError(f"dwells = {dwells!r} holds the same choice twice", "dwells")
     return out
-
-
-def check_choice(name: str, value: Any, allowed: Sequence[str]) -> str:
-    if not isinstance(value, str) or value not in allowed:
-        raise ConfigError(f"{name} = {value!r} is not one of {', '.join(allowed)}", name)
-    return value
 
 
 def squash(x: np.ndarray) -> np.ndarray:

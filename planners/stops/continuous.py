@@ -46,7 +46,6 @@ from planners.stops.base import (
     MASKED_ACTIONS,
     Dwell,
     StopEnvBase,
-    check_choice,
     check_dwells,
     layout_key,
     node_worth,
@@ -55,7 +54,7 @@ from swiptopt import kernel as K
 from swiptopt.env import LAYOUT_CACHE_SIZE
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
-from swiptopt.validation import Param, check_value
+from swiptopt.validation import Param, Spec, check_value
 
 #: How the legs between sites are made (module docstring).
 LEGS = ("ompl", "straight")
@@ -82,8 +81,8 @@ class ContinuousStopSettings:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "dwells", check_dwells(self.dwells))
-        check_choice("legs", self.legs, LEGS)
-        check_choice("masked_action", self.masked_action, MASKED_ACTIONS)
+        check_value("legs", self.legs, Spec(kind="str", choices=LEGS))
+        check_value("masked_action", self.masked_action, Spec(kind="str", choices=MASKED_ACTIONS))
         # the tour planners' declarations of the settings they share with this env
         declared = OmplTourPlanner.parameters
         for name in ("clearance_m", "ompl_iterations", "ompl_planner", "search_evaluations"):

@@ -7,10 +7,8 @@ The candidate stops of a layout (:func:`build_grid_stops`), the executor of one 
 
 from __future__ import annotations
 
-import math
-import numbers
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, ClassVar, Sequence
 
 import numpy as np
 
@@ -22,13 +20,12 @@ from planners.stops.base import (
     MASKED_ACTIONS,
     Dwell,
     StopEnvBase,
-    check_choice,
     check_dwells,
     node_worth,
 )
 from swiptopt import kernel as K
-from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 
 #: Which stops are candidates: ``"own"``: one per node, the reachable cell where one step earns
 #: the most from that node; ``"own+shared"``: those, then one more per node, the cell that
@@ -50,13 +47,17 @@ class GridStopSettings:
     masked_action: str = "raise"
     """:data:`planners.stops.base.MASKED_ACTIONS`."""
 
+    #: What the settings other than ``dwells`` may hold, checked at construction.
+    FIELDS: ClassVar[dict[str, Spec]] = {
+        "candidates": Spec(kind="str", choices=CANDIDATES),
+        "shared_fraction": Spec(lo=0, lo_open=True, hi=1),
+        "masked_action": Spec(kind="str", choices=MASKED_ACTIONS),
+    }
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "dwells", check_dwells(self.dwells))
-        check_choice("candidates", self.candidates, CANDIDATES)
-        check_choice("masked_action", self.masked_action, MASKED_ACTIONS)
-        f = self.shared_fraction
-        if isinstance(f, bool) or not isinstance(f, numbers.Real) or not math.isfinite(f) or not 0 < f <= 1:
-            raise ConfigError(f"shared_fraction = {f!r} must be a number in (0, 1]", "shared_fraction")
+        for name, spec in self.FIELDS.items():
+            check_value(name, getattr(self, name), spec)
 
     @property
     def candidates_per_node(self) -> int:
