@@ -18,14 +18,12 @@ import numpy as np
 from rl import core
 from rl.config import TabularConfig
 from swiptopt.errors import ConfigError
+from swiptopt.validation import Spec, check_value
 
 N_ACTIONS = 7
 
-
-def _check_size(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ConfigError(f"{name} = {value!r} must be a positive integer", name)
-    return int(value)
+#: What ``n_states`` and ``n_actions`` may hold (:func:`swiptopt.validation.check_value`).
+TABLE_SIZE = Spec(kind="int", lo=1, strict=True, doc="rows or columns of the Q-table")
 
 
 class RandomAgent:
@@ -36,8 +34,8 @@ class RandomAgent:
     sarsa = False
 
     def __init__(self, n_states: int = 1, n_actions: int = N_ACTIONS, *, seed: int | None = None):
-        self.n_states = _check_size("n_states", n_states)
-        self.n_actions = _check_size("n_actions", n_actions)
+        self.n_states = check_value("n_states", n_states, TABLE_SIZE)
+        self.n_actions = check_value("n_actions", n_actions, TABLE_SIZE)
         self.seed = seed
         self.rng_ = np.random.default_rng(seed)
 
@@ -104,8 +102,8 @@ class _TabularAgent:
         seed: int | None = None,
         **settings: Any,
     ):
-        self.n_states = _check_size("n_states", n_states)
-        self.n_actions = _check_size("n_actions", n_actions)
+        self.n_states = check_value("n_states", n_states, TABLE_SIZE)
+        self.n_actions = check_value("n_actions", n_actions, TABLE_SIZE)
         self.config = (config or TabularConfig()).replace(**settings) if settings else (config or TabularConfig())
         self.seed = seed
         self.q_table_ = np.zeros((self.n_states, self.n_actions))

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import ClassVar
 
 from swiptopt.errors import ConfigError
+from swiptopt.validation import Spec, check_value
 
 
 @dataclass(frozen=True)
@@ -27,22 +29,20 @@ class TabularConfig:
     replay_batch: int = 4
     """Transitions replayed after every step when replay is on (paper's Table I: 4)."""
 
-    def __post_init__(self) -> None:
-        def check(name: str, ok: bool, allowed: str) -> None:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not ok:
-                raise ConfigError(f"{name} = {value!r} is out of range: must be {allowed}", name)
+    #: What each field may hold, checked at construction (:func:`swiptopt.validation.check_value`).
+    FIELDS: ClassVar[dict[str, Spec]] = {
+        "learning_rate": Spec(lo=0, lo_open=True, hi=1),
+        "discount": Spec(lo=0, hi=1),
+        "epsilon_start": Spec(lo=0, hi=1),
+        "epsilon_decay": Spec(lo=0, lo_open=True, hi=1),
+        "epsilon_min": Spec(lo=0, hi=1),
+        "replay_size": Spec(kind="int", lo=0, hi=10**7, strict=True, unit="transitions"),
+        "replay_batch": Spec(kind="int", lo=1, hi=10**4, strict=True, unit="transitions"),
+    }
 
-        lr, d = self.learning_rate, self.discount
-        check("learning_rate", isinstance(lr, (int, float)) and 0 < lr <= 1, "a number in (0, 1]")
-        check("discount", isinstance(d, (int, float)) and 0 <= d <= 1, "a number in [0, 1]")
-        for name in ("epsilon_start", "epsilon_min"):
-            v = getattr(self, name)
-            check(name, isinstance(v, (int, float)) and 0 <= v <= 1, "a number in [0, 1]")
-        v = self.epsilon_decay
-        check("epsilon_decay", isinstance(v, (int, float)) and 0 < v <= 1, "a number in (0, 1]")
-        check("replay_size", isinstance(self.replay_size, int) and 0 <= self.replay_size <= 10**7, "an integer in [0, 10000000]")
-        check("replay_batch", isinstance(self.replay_batch, int) and 1 <= self.replay_batch <= 10**4, "an integer in [1, 10000]")
+    def __post_init__(self) -> None:
+        for name, spec in self.FIELDS.items():
+            check_value(name, getattr(self, name), spec)
 
     def replace(self, **changes: object) -> TabularConfig:
         names = {f.name for f in dataclasses.fields(self)}

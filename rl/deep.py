@@ -47,13 +47,14 @@ import time
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, ClassVar, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from swiptopt.env import INFO_KEY, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.scenario import Scenario
+from swiptopt.validation import Spec, check_value
 from swiptopt.worlds import ENV_IDS, GRID, check_world, make_env
 
 #: The algorithms :func:`train_deep` trains by name, with their class. Any other SB3
@@ -133,10 +134,8 @@ def _step_dqn_class() -> type:
         """
 
         def __init__(self, *args: Any, exploration_steps: int = 100_000, **kwargs: Any):
-            if isinstance(exploration_steps, bool) or not isinstance(exploration_steps, (int, np.integer)) \
-                    or exploration_steps < 1:
-                raise ValueError(f"exploration_steps = {exploration_steps!r} must be a positive integer")
-            self.exploration_steps = int(exploration_steps)
+            steps = Spec(kind="int", lo=1, strict=True, unit="steps")
+            self.exploration_steps = check_value("exploration_steps", exploration_steps, steps)
             super().__init__(*args, **kwargs)
 
         def _on_step(self) -> None:
@@ -171,14 +170,6 @@ def _file_stem(algorithm: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "_", name)
 
 
-def _check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
-    if (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low
-            or (high is not None and value > high)):
-        bound = f"in [{low}, {high}]" if high is not None else f">= {low}"
-        raise ConfigError(f"{name} = {value!r} must be an integer {bound}", name)
-    return int(value)
-
-
 def _constructor_arguments(cls: type) -> set[str]:
     """The named arguments of ``cls``'s constructor, a subclass's ``**kwargs`` followed up
     its bases."""
@@ -195,47 +186,32 @@ def _constructor_arguments(cls: type) -> set[str]:
 
 
 #: Ranges of SB3's numeric constructor arguments, checked before SB3 sees them (SB3 takes
-#: some out-of-range values and fails later, mid-training): (low, high, whether low is
-#: allowed, the kind). A callable (a schedule) is not checked.
-HYPERPARAM_BOUNDS: dict[str, tuple[float, float, bool, str]] = {
-    "n_steps": (1, 1 << 30, True, "int"),
-    "batch_size": (2, 1 << 30, True, "int"),
-    "n_epochs": (1, 10_000, True, "int"),
-    "buffer_size": (1, 1 << 34, True, "int"),
-    "learning_starts": (0, 1 << 40, True, "int"),
-    "gradient_steps": (-1, 1 << 20, True, "int"),
-    "target_update_interval": (1, 1 << 40, True, "int"),
-    "exploration_steps": (1, 1 << 40, True, "int"),
-    "learning_rate": (0.0, math.inf, False, "float"),
-    "gamma": (0.0, 1.0, True, "float"),
-    "gae_lambda": (0.0, 1.0, True, "float"),
-    "tau": (0.0, 1.0, False, "float"),
-    "ent_coef": (0.0, math.inf, True, "float"),
-    "vf_coef": (0.0, math.inf, True, "float"),
-    "clip_range": (0.0, math.inf, False, "float"),
-    "max_grad_norm": (0.0, math.inf, False, "float"),
-    "exploration_fraction": (0.0, 1.0, True, "float"),
-    "exploration_initial_eps": (0.0, 1.0, True, "float"),
-    "exploration_final_eps": (0.0, 1.0, True, "float"),
+#: some out-of-range values and fails later, mid-training). A callable (a schedule) is not
+#: checked.
+HYPERPARAM_BOUNDS: dict[str, Spec] = {
+    "n_steps": Spec(kind="int", lo=1, hi=1 << 30, strict=True),
+    "batch_size": Spec(kind="int", lo=2, hi=1 << 30, strict=True),
+    "n_epochs": Spec(kind="int", lo=1, hi=10_000, strict=True),
+    "buffer_size": Spec(kind="int", lo=1, hi=1 << 34, strict=True),
+    "learning_starts": Spec(kind="int", lo=0, hi=1 << 40, strict=True),
+    "gradient_steps": Spec(kind="int", lo=-1, hi=1 << 20, strict=True),
+    "target_update_interval": Spec(kind="int", lo=1, hi=1 << 40, strict=True),
+    "exploration_steps": Spec(kind="int", lo=1, hi=1 << 40, strict=True),
+    "learning_rate": Spec(lo=0, lo_open=True),
+    "gamma": Spec(lo=0, hi=1),
+    "gae_lambda": Spec(lo=0, hi=1),
+    "tau": Spec(lo=0, lo_open=True, hi=1),
+    "ent_coef": Spec(lo=0),
+    "vf_coef": Spec(lo=0),
+    "clip_range": Spec(lo=0, lo_open=True),
+    "max_grad_norm": Spec(lo=0, lo_open=True),
+    "exploration_fraction": Spec(lo=0, hi=1),
+    "exploration_initial_eps": Spec(lo=0, hi=1),
+    "exploration_final_eps": Spec(lo=0, hi=1),
 }
 #: The widest hidden layer and the most layers a network of ``net_arch`` may have.
 MAX_LAYER_WIDTH = 65_536
 MAX_LAYERS = 64
-
-
-def _check_bound(name: str, value: Any, bound: tuple[float, float, bool, str] | None) -> None:
-    if bound is None or callable(value):
-        return
-    low, high, closed, kind = bound
-    number = isinstance(value, (int, np.integer)) if kind == "int" else isinstance(value, (int, float, np.number))
-    if not isinstance(value, bool) and number and (value >= low if closed else value > low) and value <= high \
-            and math.isfinite(value):
-        return
-    what = "an integer" if kind == "int" else "a number"
-    show = (lambda x: f"{int(x):,}") if kind == "int" else (lambda x: f"{x:g}")
-    lower = f">= {show(low)}" if closed else f"> {show(low)}"
-    upper = "" if math.isinf(high) else f" and <= {show(high)}"
-    raise ConfigError(f"{name} = {value!r} must be {what} {lower}{upper}", name.partition(".")[0])
 
 
 def _check_layers(name: str, layers: Any) -> None:
@@ -313,12 +289,18 @@ class DeepConfig:
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """More arguments of ``env_id``'s environment (plain data)."""
 
+    #: What the run's counts may hold, checked (and made Python ints) at construction.
+    COUNTS: ClassVar[dict[str, Spec]] = {
+        "timesteps": Spec(kind="int", lo=1, strict=True, unit="steps"),
+        "seed": Spec(kind="int", lo=0, strict=True),
+        "n_envs": Spec(kind="int", lo=1, hi=MAX_ENVS, strict=True),
+    }
+
     def __post_init__(self) -> None:
         _check_algorithm(self.algorithm)
         object.__setattr__(self, "world", check_world(self.world))
-        object.__setattr__(self, "timesteps", _check_int("timesteps", self.timesteps, 1))
-        object.__setattr__(self, "seed", _check_int("seed", self.seed, 0))
-        object.__setattr__(self, "n_envs", _check_int("n_envs", self.n_envs, 1, MAX_ENVS))
+        for name, spec in self.COUNTS.items():
+            object.__setattr__(self, name, check_value(name, getattr(self, name), spec))
         for name in ("hyperparams", "policy_kwargs", "env_kwargs"):
             value = getattr(self, name)
             if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
@@ -352,7 +334,9 @@ class DeepConfig:
                     "hyperparams",
                 )
         for key, value in self.hyperparams.items():
-            _check_bound(f"hyperparams.{key}", value, HYPERPARAM_BOUNDS.get(key))
+            spec = HYPERPARAM_BOUNDS.get(key)
+            if spec is not None and not callable(value):
+                check_value(f"hyperparams.{key}", value, spec, field="hyperparams")
         _check_policy_kwargs(cls, self.policy_kwargs)
 
     def replace(self, **changes: Any) -> DeepConfig:

@@ -21,8 +21,15 @@ from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.evaluation import final_metrics
 from swiptopt.limits import check_size, training_log_note
+from swiptopt.validation import Spec, check_value
 
 BACKENDS = ("python", "compiled")
+
+#: What :func:`train`'s ``episodes`` and ``backend`` may hold (:func:`swiptopt.validation.check_value`).
+ARGUMENTS = {
+    "episodes": Spec(kind="int", lo=0, strict=True, doc="training episodes"),
+    "backend": Spec(kind="str", choices=BACKENDS, doc="the Python loop or the compiled trainer"),
+}
 
 #: Columns of the training log, one row per episode.
 LOG_COLUMNS = (
@@ -71,10 +78,8 @@ def train(
     layout (no ``layout_seeds``) for the ``compiled`` backend. After a compiled run the
     environment must be reset before use.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 0:
-        raise ConfigError(f"episodes = {episodes!r} must be a non-negative integer", "episodes")
-    if backend not in BACKENDS:
-        raise ConfigError(f"unknown backend {backend!r}: choose one of {BACKENDS}", "backend")
+    check_value("episodes", episodes, ARGUMENTS["episodes"])
+    check_value("backend", backend, ARGUMENTS["backend"])
     check_size("max_training_episodes", int(episodes), "episodes", "episodes", note=training_log_note(int(episodes)))
     log = np.zeros((int(episodes), len(LOG_COLUMNS)))
     if backend == "python":

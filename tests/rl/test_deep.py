@@ -241,7 +241,8 @@ def test_bad_configurations_are_config_errors(tmp_path):
         DeepConfig("dqn", 10, layout_seeds=[3, -1])
     with pytest.raises(swiptopt.ConfigError, match="vector"):
         train_deep("dqn", AuvSwiptEnv(TINY), 100)  # the tabular observation
-    with pytest.raises(swiptopt.ConfigError, match="hyperparams.batch_size = 1 must be an integer >= 2"):
+    with pytest.raises(swiptopt.ConfigError,
+                       match=r"hyperparams.batch_size = 1 is out of range: must be an integer in \[2, 1073741824\]"):
         train_deep("ppo", TINY, 100, hyperparams={"batch_size": 1})
     with pytest.raises(swiptopt.ConfigError, match="no saved model"):
         load_deep(tmp_path / "missing.zip", "ppo")
@@ -256,10 +257,12 @@ def test_bad_configurations_are_config_errors(tmp_path):
     ("dqn", {}, {"net_arch": "wide"}, "policy_kwargs", "policy_kwargs.net_arch = 'wide'"),
     ("ppo", {}, {"bogus": 1}, "policy_kwargs", "unknown policy_kwargs key 'bogus': ActorCriticPolicy takes"),
     ("ppo", {}, {"activation_fn": "relu"}, "policy_kwargs", "ppo rejected its policy_kwargs: TypeError"),
-    ("ppo", {"n_epochs": 0}, {}, "hyperparams", "hyperparams.n_epochs = 0 must be an integer >= 1"),
-    ("ppo", {"learning_rate": -1.0}, {}, "hyperparams", "hyperparams.learning_rate = -1.0 must be a number > 0"),
-    ("dqn", {"gamma": 1.5}, {}, "hyperparams", "hyperparams.gamma = 1.5 must be a number >= 0 and <= 1"),
-    ("sac", {"tau": 0.0}, {}, "hyperparams", "hyperparams.tau = 0.0 must be a number > 0"),
+    ("ppo", {"n_epochs": 0}, {}, "hyperparams",
+     "hyperparams.n_epochs = 0 is out of range: must be an integer in [1, 10000]"),
+    ("ppo", {"learning_rate": -1.0}, {}, "hyperparams",
+     "hyperparams.learning_rate = -1.0 is out of range: must be a number in (0, inf)"),
+    ("dqn", {"gamma": 1.5}, {}, "hyperparams", "hyperparams.gamma = 1.5 is out of range: must be a number in [0, 1]"),
+    ("sac", {"tau": 0.0}, {}, "hyperparams", "hyperparams.tau = 0.0 is out of range: must be a number in (0, 1]"),
 ])
 def test_settings_sb3_would_fail_on_name_the_right_argument(algorithm, hyperparams, policy_kwargs, field, words):
     """Refused before training, in one line naming the argument (unchecked, n_epochs = 0 fails
