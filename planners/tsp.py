@@ -120,7 +120,7 @@ GLS_LAMBDA = 0.3
 bandit choice among local search operators. Measured on 60 random Euclidean instances of
 20-60 points with CP-SAT-proven optima, at 0.3-1 s limits: mean gap to the optimum
 0.0-0.6 % against 0.2-1.1 % with the defaults (lambda 0.1, no bandit), and fewer runs stuck
-a few % off; on eil51 and berlin52 it reaches 0.2 % and 0 % in 0.3 s."""
+a few % off; on eil51 and berlin52 it reaches 0.2 % and 0 % at a 0.3 s limit."""
 
 COST_SCALE_TARGET = 1_000_000
 """The largest matrix entry becomes this many primary cost units (see the module docstring)."""
