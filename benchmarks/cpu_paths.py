@@ -28,8 +28,8 @@ import difflib
 import hashlib
 import os
 import shlex
-import subprocess
 import sqlite3
+import subprocess
 import sys
 import tempfile
 import time

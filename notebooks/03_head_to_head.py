@@ -59,10 +59,10 @@ from planners import exact_optimum, upper_bound
 from swiptopt import Scenario, evaluate
 from swiptopt.benchmark import tables
 from swiptopt.benchmark.algorithms import ALGORITHMS, build_policy
-from swiptopt.env import AuvSwiptEnv
 from swiptopt.benchmark.experiment import Experiment
 from swiptopt.benchmark.runner import execute
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.env import AuvSwiptEnv
 
 plt.rcParams.update({"figure.dpi": 90, "axes.grid": True, "grid.alpha": 0.3})
 print(f"quick settings: {QUICK}")

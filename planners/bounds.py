@@ -26,12 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from swiptopt import kernel as K
+from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.errors import ConfigError
 from swiptopt.harvesting import harvest_from_input_array_w
-from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.scenario import Scenario
 from swiptopt.validation import Spec, check_value
-
 
 #: Policy classes (docs/optimum.md): a plan whose actions are fixed before the episode, and
 #: a policy that may choose each action from what it has seen. A bound that holds for

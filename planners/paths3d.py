@@ -36,8 +36,9 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -294,7 +295,7 @@ def _segment_energy_fn(scenario: Scenario) -> Callable[[float, float, float, flo
     return lambda ax, ay, az, bx, by, bz: float(energy(ax, ay, az, bx, by, bz, coef))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _motion_validator_type() -> type:
     """The OMPL motion validator class (built once, on first use, so ompl loads lazily)."""
     from ompl import base as ob
@@ -318,7 +319,7 @@ def _motion_validator_type() -> type:
     return CompiledMotionValidator
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _energy_objective_type() -> type:
     """The OMPL objective class (built once, on first use, so ompl loads lazily)."""
     from ompl import base as ob

@@ -19,7 +19,6 @@ import numpy as np
 from planners.policies import Plan, _Executor
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
-from swiptopt import kernel as K
 
 
 class _RateChooser:

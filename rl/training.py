@@ -10,8 +10,9 @@ same Q-table and the same log, bit for bit, for the same seed.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 

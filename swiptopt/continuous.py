@@ -30,12 +30,14 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from swiptopt import acoustics, kernel as K
+from swiptopt import acoustics
+from swiptopt import kernel as K
 from swiptopt.kernel import P_DT, P_NORMAL_ROWS, W_T, needs_refill, observation_at, serve
 from swiptopt.link import noise_level_db, service_range_m, source_level_db
 from swiptopt.scenario import Box, Scenario, Sphere

@@ -27,8 +27,8 @@ from __future__ import annotations
 import math
 import os
 import platform
-from functools import lru_cache
-from typing import Callable
+from collections.abc import Callable
+from functools import cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -91,7 +91,7 @@ def _python_scalar(name: str) -> Callable[[float], float]:
     return logarithm
 
 
-@lru_cache(maxsize=None)
+@cache
 def _ufunc(name: str, compiled: bool) -> Callable[[np.ndarray], np.ndarray]:
     if compiled:
         import numba

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import hashlib
 import types
+from collections.abc import Callable, Mapping
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 
 def numba_available() -> bool:

@@ -6,7 +6,8 @@ axes it is given, so ``import swiptopt`` stays free of it.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 

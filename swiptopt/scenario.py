@@ -15,10 +15,11 @@ growing downwards to ``depth_m``). The AUV sits at cell centres of a grid of
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +28,6 @@ from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size
 from swiptopt.tomlfile import read_toml
 from swiptopt.validation import Spec, check_keys, check_value
-
 
 
 class ScenarioError(ConfigError):

@@ -28,8 +28,8 @@ Registered as the ``vector_entry_point`` of ``swiptopt/AuvSwipt-v1`` and
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any, Callable
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np

@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 from planners.continuous.plan import ARRIVAL_TOLERANCE_M, ContinuousPlan
-from swiptopt import kernel as K
 
 #: A commanded move shorter than this, m, is no progress (the env stopped it at contact).
 NO_PROGRESS_M = 1e-6

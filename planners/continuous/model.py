@@ -6,7 +6,8 @@ service of single positions computed in batches (:class:`PointService`)."""
 from __future__ import annotations
 
 import functools
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from typing import Any
 
 import numpy as np
@@ -51,7 +50,6 @@ import numpy as np
 from planners.continuous.executor import Executor
 from planners.continuous.model import PointService, hover_values, point_model, step_functions
 from planners.continuous.plan import ContinuousPlan, Leg, LegPath, OmplCall, leg_steps
-from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.validation import Param, check_params
 

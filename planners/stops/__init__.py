@@ -19,7 +19,8 @@ continuous world's legs, scikit-learn not at all.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
@@ -27,7 +28,6 @@ from planners.stops.base import CANDIDATE_FEATURES, DWELLS, MASKED_ACTIONS, Dwel
 from planners.stops.continuous import ContinuousStopChoiceEnv, ContinuousStops, ContinuousStopSettings
 from planners.stops.grid import CANDIDATES, GridStops, GridStopSettings, StopChoiceEnv, build_grid_stops
 from swiptopt.scenario import Scenario
-
 
 #: The registered ids of the stop-choice environments, by world (``import planners``
 #: registers them: ``gymnasium.make(STOP_ENV_IDS["grid"], scenario=..., layout_seeds=...)``).

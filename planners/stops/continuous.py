@@ -27,8 +27,9 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,6 @@ from planners.stops.base import (
 )
 from swiptopt import kernel as K
 from swiptopt.env import LAYOUT_CACHE_SIZE
-from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
 from swiptopt.validation import Param, Spec, check_value
 

@@ -7,8 +7,9 @@ The candidate stops of a layout (:func:`build_grid_stops`), the executor of one 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 

@@ -19,11 +19,11 @@ pytest.importorskip("sklearn")
 from planners.continuous import (  # noqa: E402
     ARRIVAL_TOLERANCE_M,
     ContinuousPlan,
+    Executor,
     Leg,
     OmplTourPlanner,
-    StraightLinePlanner,
-    Executor,
     PointService,
+    StraightLinePlanner,
     leg_steps,
     point_model,
     trajectory_return,

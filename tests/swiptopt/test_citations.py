@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from planners import paths3d, power_split
+from planners import power_split
 from rl import agents, core
 from swiptopt import acoustics, auv, coverage, harvesting
 
