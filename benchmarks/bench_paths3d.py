@@ -61,7 +61,10 @@ def run_case(title, start, goal, world, bounds, references, planners, limits, ru
     for name in planners:
         cells = []
         for limit in limits:
-            results = [plan_path_3d(start, goal, world, planner=name, time_limit_s=limit, bounds=bounds, seed=seed) for _ in range(runs)]
+            results = [
+                plan_path_3d(start, goal, world, planner=name, time_limit_s=limit, bounds=bounds, seed=seed)
+                for _ in range(runs)
+            ]
             lengths = [r.length_m for r in results if r.exact]
             if lengths:
                 med = statistics.median(lengths)
@@ -82,7 +85,9 @@ def main() -> None:
 
     print(f"median path length (m), excess over the reference, exact solutions / runs; seed {args.seed}")
     optimum = shortest_around_sphere_m(SPHERE_START, SPHERE_GOAL, BALL.center_m, BALL.radius_m)
-    probe = plan_path_3d(SPHERE_START, SPHERE_GOAL, [BALL], planner="RRTConnect", bounds=CUBE, time_limit_s=0.1, seed=args.seed)
+    probe = plan_path_3d(
+        SPHERE_START, SPHERE_GOAL, [BALL], planner="RRTConnect", bounds=CUBE, time_limit_s=0.1, seed=args.seed
+    )
     margin = probe.check_spacing_m / 2
     grown = shortest_around_sphere_m(SPHERE_START, SPHERE_GOAL, BALL.center_m, BALL.radius_m + margin)
     run_case(
@@ -96,7 +101,10 @@ def main() -> None:
     around = float(np.linalg.norm(edge - start) + np.linalg.norm(goal - edge))
     run_case(
         "harbour preset", start, goal, harbour, None,
-        [("optimum round the pier's edge", around), ("straight line (blocked by the pier)", float(np.linalg.norm(goal - start)))],
+        [
+            ("optimum round the pier's edge", around),
+            ("straight line (blocked by the pier)", float(np.linalg.norm(goal - start))),
+        ],
         planners, args.limits, args.runs, args.seed,
     )
 

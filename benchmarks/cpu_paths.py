@@ -93,7 +93,9 @@ def main() -> None:
         bits = "every record to the last bit" if not differ else f"records differ in the last bits: {', '.join(differ)}"
         print(f"{name:24s} {seconds:7.1f} s  tables {'identical' if same else 'DIFFERENT'}; {bits}")
         if not same:
-            diff = difflib.unified_diff(reference.splitlines(), tables.splitlines(), "reference", name, lineterm="", n=0)
+            diff = difflib.unified_diff(
+                reference.splitlines(), tables.splitlines(), "reference", name, lineterm="", n=0
+            )
             print("\n".join(list(diff)[:40]))
     print("all identical" if failures == 0 else f"{failures} configuration(s) differ")
     sys.exit(1 if failures else 0)

@@ -49,7 +49,10 @@ def measure(layouts: int, episodes: int) -> dict[str, dict[int, dict[str, float]
                 step_j = auv_power(scenario).projector_energy_j
                 for r in evaluate(policy, env, episodes, seed=layout).records:
                     motion = r["auv_propulsion_j"] + r["auv_hotel_j"]
-                    per_node_projector = r["data_bits"] / r["energy_efficiency_per_node_bit_per_j"] - motion if r["data_bits"] else np.nan
+                    per_node_projector = (
+                        r["data_bits"] / r["energy_efficiency_per_node_bit_per_j"] - motion
+                        if r["data_bits"] else np.nan
+                    )
                     rows.append({
                         "data_bits": r["data_bits"],
                         "motion_j": motion,
@@ -98,12 +101,16 @@ def main() -> None:
     results = measure(args.layouts, args.episodes)
     for name, per_n in results.items():
         print(f"\n{name} (Gamma = 1, paper preset, {args.layouts} layouts x {args.episodes} episodes)")
-        header = ["N", "data kbit", "motion kJ", "proj. serving kJ", "proj. per node kJ", *[k.replace("_bit_per_j", "") for k in READINGS]]
+        header = [
+            "N", "data kbit", "motion kJ", "proj. serving kJ", "proj. per node kJ",
+            *[k.replace("_bit_per_j", "") for k in READINGS],
+        ]
         print(" | ".join(header))
         for n in NODES:
             v = per_n[n]
             print(" | ".join([
-                str(n), f"{v['data_bits'] / 1e3:.0f}", f"{v['motion_j'] / 1e3:.1f}", f"{v['projector_serving_j'] / 1e3:.0f}",
+                str(n), f"{v['data_bits'] / 1e3:.0f}", f"{v['motion_j'] / 1e3:.1f}",
+                f"{v['projector_serving_j'] / 1e3:.0f}",
                 f"{v['projector_per_node_j'] / 1e3:.0f}", *[f"{v[k]:.3g}" for k in READINGS],
             ]))
     if args.outdir is not None:

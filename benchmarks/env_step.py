@@ -1,4 +1,5 @@
-"""Steps per second through ``gymnasium.make``: swiptopt's envs (the grid with both observations, the continuous world), beside FrozenLake-v1.
+"""Steps per second through ``gymnasium.make``: swiptopt's envs (the grid with both observations,
+the continuous world), beside FrozenLake-v1.
 
 All environments run in this one process, with the wrappers ``gymnasium.make`` adds,
 random actions drawn up front, resetting at episode ends (so each episode's metrics, computed
@@ -46,7 +47,7 @@ def steps_per_second(env: gym.Env, n_actions: int, steps: int, seed: int) -> flo
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--nodes", type=int, nargs="+", default=[50, 1000])

@@ -68,7 +68,8 @@ def main() -> None:
     parser.add_argument("--hindsight-nodes", type=int, default=0,
                         help="branch-and-bound nodes per table (0: its linear relaxation)")
     parser.add_argument("--tiny-episodes", type=int, default=2000, help="evaluation episodes on the tiny variant")
-    parser.add_argument("--tiny-samples", type=int, default=256, help="draw tables of the tiny variant's hindsight bound")
+    parser.add_argument("--tiny-samples", type=int, default=256,
+                        help="draw tables of the tiny variant's hindsight bound")
     parser.add_argument("--skip-paper", action="store_true")
     parser.add_argument("--skip-tiny", action="store_true")
     args = parser.parse_args()
@@ -167,7 +168,9 @@ def tiny(args: argparse.Namespace, algorithms: list[str]) -> None:
     result, cpu = _cpu(lambda: solve_optimum(scenario, budget=exact))
     hind, hcpu = _cpu(lambda: hindsight_bound(scenario, budget=HindsightBudget(samples=args.tiny_samples,
                                                                                 max_nodes=100_000)))
-    open_loop = "open-loop plans" + (", but a walk can end early here: none" if result.details.get("can_end_early") else "")
+    open_loop = "open-loop plans" + (
+        ", but a walk can end early here: none" if result.details.get("can_end_early") else ""
+    )
     rows = [("upper", upper_bound(scenario).return_, 0.0, "every policy"),
             ("lp (expected)", result.lp_bound, result.lp_time_s, "every policy"),
             ("milp (expected)", result.bound, cpu, open_loop),
@@ -180,7 +183,8 @@ def tiny(args: argparse.Namespace, algorithms: list[str]) -> None:
               f"  {name:<26} {bound:8.4f} {seconds:7.1f} s   slack {bound - value:+.4f} "
               f"({100 * (bound - value) / abs(value):+.1f} %); {note}")
     print(f"  {'algorithm':<14} {'class':<10} {'return':>17} {'below the DP by':>16}")
-    summary = evaluate(AdaptivePolicy(), make_env(GRID, scenario), args.tiny_episodes, seed=EVALUATION_SEED).summary["return"]
+    evaluation = evaluate(AdaptivePolicy(), make_env(GRID, scenario), args.tiny_episodes, seed=EVALUATION_SEED)
+    summary = evaluation.summary["return"]
     print(f"  {'DP policy':<14} {ADAPTIVE:<10} {summary.mean:8.4f} ± {summary.ci95:.4f} {value - summary.mean:+16.4f}")
     for name in algorithms:
         settings = {"budget": "default"} if name == "milp" else {}

@@ -1,4 +1,5 @@
-"""Environment steps per CPU-second of N copies: SB3's DummyVecEnv over N single envs, the Sb3VectorEnv adapter, and the raw AuvSwiptVectorEnv.
+"""Environment steps per CPU-second of N copies: SB3's DummyVecEnv over N single envs, the
+Sb3VectorEnv adapter, and the raw AuvSwiptVectorEnv.
 
 For each world (the grid on the paper preset with 25 nodes and the vector observation; the
 continuous world on the harbour preset) and each N, three ways of stepping N copies under
@@ -82,7 +83,7 @@ def steps_per_cpu_second(venv: Any, reset: Callable[[int], None], actions: list[
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=20_000, help="environment steps per measurement (all copies)")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--num-envs", type=int, nargs="+", default=[1, 16, 64])
@@ -111,7 +112,9 @@ def main() -> None:
     for case in CASES:
         for n in args.num_envs:
             dummy, sb3, raw = (med[case, n, kind] for kind in KINDS)
-            print(f"  {case:<22}{n:>4}{dummy:>14,.0f}{sb3:>14,.0f}{raw:>19,.0f}{sb3 / dummy:>13.2f}{raw / dummy:>13.2f}")
+            print(
+                f"  {case:<22}{n:>4}{dummy:>14,.0f}{sb3:>14,.0f}{raw:>19,.0f}{sb3 / dummy:>13.2f}{raw / dummy:>13.2f}"
+            )
 
 
 if __name__ == "__main__":
