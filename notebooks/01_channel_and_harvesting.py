@@ -142,7 +142,9 @@ fig.tight_layout()
 # %%
 far_m = np.geomspace(10.0, 100_000.0, N_DISTANCES)
 grid_khz = np.geomspace(0.1, 500.0, N_FREQUENCIES)
-an_db = acoustics.an_product_db(far_m[:, None], grid_khz[None, :], scenario.spreading_k, scenario.shipping, scenario.wind_mps)
+an_db = acoustics.an_product_db(
+    far_m[:, None], grid_khz[None, :], scenario.spreading_k, scenario.shipping, scenario.wind_mps
+)
 narrowband_snr_db = at_10m.source_level_db - an_db  # SNR in a 1 Hz band
 best_khz = acoustics.optimal_frequency_khz(far_m, scenario.spreading_k, scenario.shipping, scenario.wind_mps)
 

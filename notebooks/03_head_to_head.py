@@ -116,7 +116,8 @@ print(f"{first.total} tasks: ran {first.ran} in {first.seconds:.1f} s; "
 with ResultStore(store_path, create=False) as store:
     rows, missing = tables.aggregate(experiment, store)
     provenance = store.runs()[-1]["provenance"]
-print(f"{missing} tasks missing; swiptopt {provenance['versions']['swiptopt']}, numpy {provenance['versions']['numpy']}")
+versions = provenance["versions"]
+print(f"{missing} tasks missing; swiptopt {versions['swiptopt']}, numpy {versions['numpy']}")
 display(Markdown(tables.to_markdown(rows)))
 
 # %% [markdown]
@@ -274,7 +275,8 @@ for metric, heading, scale, digits in tables.DISPLAY:  # the columns of the tabl
         at = results[(results.metric == metric) & (results.n_nodes == n)]
         if metric in EVERY_LAYOUT:
             at = at[at["missing"] == 0]
-        top, rl, planner = best(at, higher), best(at[at.family == "rl"], higher), best(at[at.family == "planner"], higher)
+        top = best(at, higher)
+        rl, planner = best(at[at.family == "rl"], higher), best(at[at.family == "planner"], higher)
         if top is None:
             continue  # no algorithm has a value (a target nobody reached)
         compared += 1

@@ -246,7 +246,9 @@ fig = plt.figure(figsize=(19, 5.5))
 ax_rock = fig.add_subplot(1, 3, 1, projection="3d")
 draw_obstacles(ax_rock, open_water)
 if around_rock.exact:
-    ax_rock.plot(*around_rock.waypoints.T, "o-", color="tab:red", ms=3, label=f"OMPL path, {around_rock.length_m:.0f} m")
+    ax_rock.plot(
+        *around_rock.waypoints.T, "o-", color="tab:red", ms=3, label=f"OMPL path, {around_rock.length_m:.0f} m"
+    )
 ax_rock.plot(*np.stack([a, b]).T, "k:", label="straight line (blocked)")
 ax_rock.set_title("around a sphere")
 ax_rock.legend(fontsize=8)
@@ -307,7 +309,9 @@ alpha_star = np.array([optimal_split_ratio(snr, budget.available_power_w, reward
 
 fig, (ax_map, ax_lines, ax_rate) = plt.subplots(1, 3, figsize=(16, 4.3))
 mesh = ax_map.pcolormesh(distances_m, weights, alpha_star, shading="auto", cmap="viridis", vmin=0, vmax=1)
-contours = ax_map.contour(distances_m, weights, alpha_star, levels=[0.1, 0.25, 0.5, 0.75, 0.9], colors="w", linewidths=0.8)
+contours = ax_map.contour(
+    distances_m, weights, alpha_star, levels=[0.1, 0.25, 0.5, 0.75, 0.9], colors="w", linewidths=0.8
+)
 ax_map.clabel(contours, fontsize=7)
 ax_map.set_xlabel("distance AUV to node (m)")
 ax_map.set_ylabel("reward weight Gamma (-)")
