@@ -132,7 +132,8 @@ def outside_references(page: Path, text: str) -> list[str]:
         for pattern, what in ((SPEC_REFERENCE, "the design brief (SPEC)"), (LINE_REFERENCE, "a paper line number")):
             match = pattern.search(line)
             if match:
-                problems.append(f"{page.name}:{number}: {what}: ...{line[max(0, match.start() - 30):match.end() + 30]}...")
+                context = line[max(0, match.start() - 30) : match.end() + 30]
+                problems.append(f"{page.name}:{number}: {what}: ...{context}...")
     return problems
 
 

@@ -57,7 +57,10 @@ def two_cells(*, covers_a: bool, fail: float, steps: int, stay_cost: float, move
 
 def best_open_loop(scenario, tables):
     steps = int(tables.params[K.P_STEPS])
-    return max(open_loop_value(scenario, list(seq), tables=tables) for seq in itertools.product(range(K.N_ACTIONS), repeat=steps))
+    return max(
+        open_loop_value(scenario, list(seq), tables=tables)
+        for seq in itertools.product(range(K.N_ACTIONS), repeat=steps)
+    )
 
 
 def perfect_information(scenario, tables, fail):
@@ -164,7 +167,8 @@ def test_gain_survival_is_one_minus_the_step_models_cdf():
     base = Scenario.preset("tiny")
     x = np.array([0.0, 0.05, 0.3, 1.0, 2.5, 7.0])
     for channel, overrides in ((1, {"channel": "shadowing", "shadowing_sigma_db": 4.0}),
-                               (2, {"channel": "rician", "rician_k": 0.0}), (2, {"channel": "rician", "rician_k": 6.0})):
+                               (2, {"channel": "rician", "rician_k": 0.0}),
+                               (2, {"channel": "rician", "rician_k": 6.0})):
         tables = K.build_tables(base.replace(**overrides))
         _, cdf = _gain_distribution(channel, tables.params[K.P_SIGMA_DB], tables.params[K.P_RICIAN_K])
         assert gain_survival(tables, x) == pytest.approx(1.0 - cdf(x), abs=1e-12)

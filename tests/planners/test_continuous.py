@@ -281,7 +281,8 @@ def test_the_executor_skips_served_stops_cuts_served_dwells_and_ends_where_it_st
     scored = planner._scored(env.world, plan)
     assert scored.model_return == pytest.approx(env_return, rel=1e-9)
     np.testing.assert_allclose(scored.positions_m, path, atol=1e-9)
-    assert trajectory_return(env.world, scored.positions_m, scored.actions) == pytest.approx(scored.model_return, rel=1e-12)
+    replayed = trajectory_return(env.world, scored.positions_m, scored.actions)
+    assert replayed == pytest.approx(scored.model_return, rel=1e-12)
 
     fixed = Executor(plan, env.world, adaptive=False)  # the plan as planned: no reactions
     fixed_return, fixed_path = _run(env, fixed)

@@ -86,7 +86,9 @@ def test_the_linear_relaxation_per_table_is_a_weaker_bound():
 def test_unsupported_scenarios_are_a_status_and_bad_budgets_an_error():
     result = hindsight_bound(Scenario.preset("tiny", link="uplink"), budget=HindsightBudget(samples=2))
     assert result.status == "unsupported" and "uplink" in result.message and result.mean is None
-    for bad, field in (({"samples": 1}, "samples"), ({"max_nodes": -1}, "max_nodes"), ({"time_limit_s": 0}, "time_limit_s")):
+    for bad, field in (
+        ({"samples": 1}, "samples"), ({"max_nodes": -1}, "max_nodes"), ({"time_limit_s": 0}, "time_limit_s")
+    ):
         with pytest.raises(ConfigError) as error:
             HindsightBudget(**bad)
         assert error.value.field == field

@@ -83,7 +83,9 @@ def test_clearance_is_kept_along_every_segment():
 def test_a_thin_wall_is_not_jumped():
     # a 5 cm wall across most of the volume: only the open band y > 80 lets the AUV by
     wall = Box((49.975, 0.0, 0.0), (50.025, 80.0, 100.0))
-    result = plan_path_3d((10.0, 20.0, 50.0), (90.0, 20.0, 50.0), [wall], planner="RRTConnect", bounds=CUBE, time_limit_s=0.5)
+    result = plan_path_3d(
+        (10.0, 20.0, 50.0), (90.0, 20.0, 50.0), [wall], planner="RRTConnect", bounds=CUBE, time_limit_s=0.5
+    )
     assert result.exact
     assert not np.any(wall.contains(dense_points(result.waypoints, spacing_m=0.005)))
     assert result.check_spacing_m <= 0.25 * 0.05 + 1e-12
@@ -285,7 +287,10 @@ SEED_SCRIPT = textwrap.dedent(
 
 
 def test_seed_is_set_once_per_process_and_repeats_in_a_fresh_process():
-    runs = [subprocess.run([sys.executable, "-c", SEED_SCRIPT], capture_output=True, text=True, check=True) for _ in range(2)]
+    runs = [
+        subprocess.run([sys.executable, "-c", SEED_SCRIPT], capture_output=True, text=True, check=True)
+        for _ in range(2)
+    ]
     first, second = (json.loads(r.stdout) for r in runs)
     assert all(r.stderr == "" for r in runs)  # OMPL's log is silenced, nothing leaks at exit
     assert first["first"] == second["first"]  # same seed, fresh process: same samples
@@ -394,7 +399,8 @@ def test_segments_free_agrees_with_dense_sampling_and_keeps_the_clearance():
     for p, q, ok in zip(starts, ends, free):
         points = dense_points(np.stack([p, q]), spacing_m=0.1)
         if ok:
-            assert paths3d.clearance_of_m(points[:: max(1, len(points) // 50)], harbour, faces=False).min() >= 1.0 - 1e-9
+            sampled = points[:: max(1, len(points) // 50)]
+            assert paths3d.clearance_of_m(sampled, harbour, faces=False).min() >= 1.0 - 1e-9
         blocked = bool(harbour.is_blocked(points).any())
         assert not (ok and blocked)
     # a segment along the pier's face, 3 m off it, has less than 3 m of clearance

@@ -236,7 +236,10 @@ def test_single_link_closed_form_equals_program_and_brute_force():
         assert result.dwell_s[0] == pytest.approx(total, rel=1e-6)  # the budget binds
         assert result.objective == pytest.approx(closed, rel=1e-4)
         assert result.split_ratio[0, 0] == pytest.approx(alpha, abs=1e-3)
-        brute = grid_argmax_1d(lambda a: total * ps.split_value_rate(a, gamma, p_av, **m), 0.0, 1.0)
+        brute = grid_argmax_1d(
+            lambda a, total=total, gamma=gamma, p_av=p_av, m=m: total * ps.split_value_rate(a, gamma, p_av, **m),
+            0.0, 1.0,
+        )
         assert brute == pytest.approx(closed, rel=1e-4)
         assert brute <= closed * (1 + 1e-12)  # no split beats the closed form
     assert interior >= 5  # the draw exercises the unclipped branch too

@@ -8,7 +8,8 @@ from swiptopt.env import AuvSwiptEnv
 
 def test_paper_defaults():
     c = TabularConfig()
-    assert (c.learning_rate, c.discount, c.epsilon_start, c.epsilon_decay, c.epsilon_min) == (0.75, 0.99, 1.0, 0.999, 0.001)
+    learning = (c.learning_rate, c.discount, c.epsilon_start, c.epsilon_decay, c.epsilon_min)
+    assert learning == (0.75, 0.99, 1.0, 0.999, 0.001)
     assert c.replay_size == 0
 
 

@@ -87,7 +87,8 @@ def test_the_same_seed_trains_the_same_model(algorithm):
     assert any(not np.array_equal(p1[n], p3[n]) for n in p1)
     np.testing.assert_array_equal(first.episode_returns, again.episode_returns)
     env = AuvSwiptEnv(TINY, observation="vector", layout_seeds=range(5))
-    assert swiptopt.evaluate(first.model, env, 4, seed=9).records == swiptopt.evaluate(again.model, env, 4, seed=9).records
+    records = swiptopt.evaluate(first.model, env, 4, seed=9).records
+    assert records == swiptopt.evaluate(again.model, env, 4, seed=9).records
     assert first.config_hash == again.config_hash != other.config_hash
 
 
@@ -108,10 +109,14 @@ def test_train_or_load_reuses_a_matching_model(tmp_path):
     second = train_or_load_deep(tmp_path, "dqn", TINY, 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
     assert second.loaded and second.config_hash == first.config_hash and second.note == ""
     obs = _observations(50)
-    np.testing.assert_array_equal(first.model.predict(obs, deterministic=True)[0], second.model.predict(obs, deterministic=True)[0])
+    np.testing.assert_array_equal(
+        first.model.predict(obs, deterministic=True)[0], second.model.predict(obs, deterministic=True)[0]
+    )
     for key, value in _parameters(first.model).items():
         np.testing.assert_array_equal(value, _parameters(second.model)[key])
-    other = train_or_load_deep(tmp_path, "dqn", TINY.replace(split_ratio=0.3), 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET)
+    other = train_or_load_deep(
+        tmp_path, "dqn", TINY.replace(split_ratio=0.3), 300, 1, hyperparams=SETTINGS["dqn"], policy_kwargs=NET
+    )
     assert not other.loaded and len(list(tmp_path.glob("*.npz"))) == 2 and len(read_manifest(tmp_path)) == 2
 
 
@@ -229,9 +234,11 @@ def test_the_hash_names_every_part_of_the_configuration():
 
 
 def test_bad_configurations_are_config_errors(tmp_path):
-    with pytest.raises(swiptopt.ConfigError, match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'maskable_ppo', 'ppo', 'sac'\]"):
+    with pytest.raises(swiptopt.ConfigError,
+                       match=r"'pp0'.*did you mean 'ppo'.*\['dqn', 'maskable_ppo', 'ppo', 'sac'\]"):
         train_deep("pp0", TINY, 100)
-    with pytest.raises(swiptopt.ConfigError, match=r"unknown ppo setting 'nsteps' \(did you mean 'n_steps'\?\).*batch_size"):
+    with pytest.raises(swiptopt.ConfigError,
+                       match=r"unknown ppo setting 'nsteps' \(did you mean 'n_steps'\?\).*batch_size"):
         train_deep("ppo", TINY, 100, hyperparams={"nsteps": 64})
     with pytest.raises(swiptopt.ConfigError, match="seed"):
         train_deep("ppo", TINY, 100, hyperparams={"seed": 1})  # set through the argument only

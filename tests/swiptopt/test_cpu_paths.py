@@ -91,8 +91,9 @@ def digests() -> dict[str, str]:
 
 def _in_fresh_process(extra_env: dict[str, str]) -> dict[str, str]:
     env = dict(os.environ, **extra_env)
+    code = "import json; from tests.swiptopt.test_cpu_paths import digests; print(json.dumps(digests()))"
     out = subprocess.run(
-        [sys.executable, "-c", "import json; from tests.swiptopt.test_cpu_paths import digests; print(json.dumps(digests()))"],
+        [sys.executable, "-c", code],
         cwd=ROOT, env=env, capture_output=True, text=True, check=True,
     )
     return json.loads(out.stdout.strip().splitlines()[-1])

@@ -117,7 +117,9 @@ def test_invariants_over_random_rollouts(preset, overrides):
                 m = info["episode_metrics"]
                 assert set(EPISODE_METRICS) <= set(m)
                 assert m["data_bits"] == pytest.approx(s.collected.sum())
-                assert m["auv_energy_j"] == pytest.approx(m["auv_propulsion_j"] + m["auv_hotel_j"] + m["auv_projector_j"])
+                assert m["auv_energy_j"] == pytest.approx(
+                    m["auv_propulsion_j"] + m["auv_hotel_j"] + m["auv_projector_j"]
+                )
                 break
 
 
@@ -223,9 +225,12 @@ def test_energy_efficiency_readings_side_by_side():
     p = auv_power(env.scenario)
     motion = m["auv_propulsion_j"] + m["auv_hotel_j"]
     assert 0 < covered_steps < 16 and covered_nodes > covered_steps  # the readings differ here
-    assert m["energy_efficiency_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * covered_steps))
-    assert m["energy_efficiency_always_on_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * 16))
-    assert m["energy_efficiency_per_node_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + p.projector_energy_j * covered_nodes))
+    projector_j = p.projector_energy_j
+    assert m["energy_efficiency_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + projector_j * covered_steps))
+    assert m["energy_efficiency_always_on_bit_per_j"] == pytest.approx(m["data_bits"] / (motion + projector_j * 16))
+    assert m["energy_efficiency_per_node_bit_per_j"] == pytest.approx(
+        m["data_bits"] / (motion + projector_j * covered_nodes)
+    )
     assert m["mobility_efficiency_bit_per_j"] == pytest.approx(m["data_bits"] / motion)
 
 
@@ -320,7 +325,9 @@ def reference_vector_observation(env):
     here = sc.cell_centers_m[s.cell] / extent
     covered = np.zeros(t.n_nodes)
     covered[t.covered(s.cell)] = 1.0
-    per_node = np.column_stack([sc.layout.positions_m / extent - here, s.data_left / t.data0, s.energy / t.capacity, covered])
+    per_node = np.column_stack(
+        [sc.layout.positions_m / extent - here, s.data_left / t.data0, s.energy / t.capacity, covered]
+    )
     return np.concatenate([here, [1.0 - s.t / sc.episode_steps], per_node.ravel()]).astype(np.float32)
 
 
@@ -410,7 +417,9 @@ def test_metrics_key_survives_the_standard_wrappers():
 def test_gymnasium_vector_env_keeps_metrics_whole():
     # two sub-envs end at once with different kinds of values (a step count and None):
     # stacking them per metric would fail; the mapping stays one object per sub-env
-    envs = gym.vector.SyncVectorEnv([lambda: AuvSwiptEnv(preset="tiny"), lambda: AuvSwiptEnv(preset="tiny", data_bits=1e12)])
+    envs = gym.vector.SyncVectorEnv(
+        [lambda: AuvSwiptEnv(preset="tiny"), lambda: AuvSwiptEnv(preset="tiny", data_bits=1e12)]
+    )
     envs.reset(seed=0)
     for _ in range(8):
         _, _, term, trunc, infos = envs.step(np.full(2, K.HOVER))
@@ -443,7 +452,8 @@ def test_a_layout_chosen_at_reset_is_that_layout(observation):
         for f in dataclasses.fields(K.Tables):
             np.testing.assert_array_equal(getattr(env.tables, f.name), getattr(rebuilt, f.name), err_msg=f.name)
     # without options an episode runs on the scenario's own layout again
-    assert _trace(env, 3, None, actions) == _trace(AuvSwiptEnv(preset="paper", n_nodes=12, observation=observation), 3, None, actions)
+    fresh = AuvSwiptEnv(preset="paper", n_nodes=12, observation=observation)
+    assert _trace(env, 3, None, actions) == _trace(fresh, 3, None, actions)
 
 
 def test_layouts_drawn_per_episode():
@@ -454,7 +464,10 @@ def test_layouts_drawn_per_episode():
     assert env.reset(seed=0, options={"layout_seed": 99})[1]["layout_seed"] == 99  # an option wins
     unseeded = {env.reset()[1]["layout_seed"] for _ in range(40)}
     assert unseeded == {11, 12, 13, 14}
-    positions = {env.reset(options={"layout_seed": k})[1]["layout_seed"]: env.scenario.layout.positions_m.copy() for k in (11, 12)}
+    positions = {
+        env.reset(options={"layout_seed": k})[1]["layout_seed"]: env.scenario.layout.positions_m.copy()
+        for k in (11, 12)
+    }
     assert not np.allclose(positions[11], positions[12])
     huge = AuvSwiptEnv(preset="tiny", layout_seeds=range(10**12, 2 * 10**12, 7))  # never materialised
     seed = huge.reset(seed=0)[1]["layout_seed"]

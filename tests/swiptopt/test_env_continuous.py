@@ -187,7 +187,9 @@ def test_make_layouts_and_reset_options() -> None:
     assert seen == {3, 7}
     _, info = env.reset(options={"layout_seed": 9})
     assert info["layout_seed"] == 9
-    np.testing.assert_array_equal(env.unwrapped.world.nodes_m, Scenario.preset("harbour", layout_seed=9).layout.positions_m)
+    np.testing.assert_array_equal(
+        env.unwrapped.world.nodes_m, Scenario.preset("harbour", layout_seed=9).layout.positions_m
+    )
     with pytest.raises(ConfigError, match="unknown reset option"):
         env.reset(options={"layout": 1})
     with pytest.raises(ValueError, match=r"\(3,\) real numbers"):

@@ -80,4 +80,6 @@ def test_vectorised_harvester_matches_the_scalar_kernel_function(logistic):
     assert np.all((vector >= 0.0) & (vector <= p_in + 0.0))
     # one row broadcast against scalars, as the tables call it
     row = hv.harvest_from_input_array_w(p_in[:100], logistic, 0.5, 0.024, 150.0, 0.014)
-    np.testing.assert_array_equal(row, [hv.harvest_from_input_w(p, logistic, 0.5, 0.024, 150.0, 0.014) for p in p_in[:100]])
+    np.testing.assert_array_equal(
+        row, [hv.harvest_from_input_w(p, logistic, 0.5, 0.024, 150.0, 0.014) for p in p_in[:100]]
+    )

@@ -1,7 +1,10 @@
 import subprocess
 import sys
 
-HEAVY = ("cvxpy", "ortools", "ompl", "dask", "distributed", "matplotlib", "sklearn", "numba", "pandas", "scipy", "rich", "click")
+HEAVY = (
+    "cvxpy", "ortools", "ompl", "dask", "distributed", "matplotlib", "sklearn", "numba", "pandas", "scipy", "rich",
+    "click",
+)
 
 
 def test_import_is_light_and_silent():

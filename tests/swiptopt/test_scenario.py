@@ -45,7 +45,9 @@ def test_round_trip_with_overrides_and_optional_fields(tmp_path):
 
 def test_toml_may_start_from_a_preset(tmp_path):
     path = tmp_path / "s.toml"
-    path.write_text('preset = "tiny"\nn_nodes = 2\n\n[[obstacles]]\nkind = "sphere"\ncenter_m = [5, 5, 15]\nradius_m = 2\n')
+    path.write_text(
+        'preset = "tiny"\nn_nodes = 2\n\n[[obstacles]]\nkind = "sphere"\ncenter_m = [5, 5, 15]\nradius_m = 2\n'
+    )
     s = Scenario.from_toml(path)
     assert (s.name, s.n_nodes, s.grid_shape) == ("tiny", 2, (3, 3, 2))
     assert s.obstacles == (Sphere(center_m=(5.0, 5.0, 15.0), radius_m=2.0),)
@@ -266,7 +268,8 @@ def test_size_limits_allow_a_laptop_sized_scenario_and_are_overridable(monkeypat
     fine = Scenario.preset("paper", cell_size_m=2.5, n_nodes=1000)
     assert fine.n_cells * fine.n_nodes == 32_000_000
     monkeypatch.setenv("SWIPTOPT_MAX_CELL_NODE_PAIRS", "1_000_000")
-    with pytest.raises(ScenarioError, match=r"32,000,000, over the limit of 1,000,000 \(set SWIPTOPT_MAX_CELL_NODE_PAIRS"):
+    with pytest.raises(ScenarioError,
+                       match=r"32,000,000, over the limit of 1,000,000 \(set SWIPTOPT_MAX_CELL_NODE_PAIRS"):
         Scenario.preset("paper", cell_size_m=2.5, n_nodes=1000)
     monkeypatch.setenv("SWIPTOPT_MAX_CELLS", "600_000")
     monkeypatch.setenv("SWIPTOPT_MAX_CELL_NODE_PAIRS", "600_000")

@@ -43,7 +43,9 @@ def _vector(world, n, backend="compiled", mode=AutoresetMode.NEXT_STEP, **change
 def _sync(world, n, backend="compiled", mode=AutoresetMode.NEXT_STEP, **changes):
     preset, kwargs = WORLDS[world]
     cls = SINGLE[world]
-    return SyncVectorEnv([lambda: cls(preset=preset, backend=backend, **{**kwargs, **changes})] * n, autoreset_mode=mode)
+    return SyncVectorEnv(
+        [lambda: cls(preset=preset, backend=backend, **{**kwargs, **changes})] * n, autoreset_mode=mode
+    )
 
 
 def _actions(world, n, steps, seed=0):
@@ -189,7 +191,9 @@ def test_a_layout_covering_more_pairs_widens_the_rows():
     # the rows start as wide as the scenario's own layout; a layout covering more pairs widens them
     preset, kwargs = WORLDS["grid"]
     fields = {k: v for k, v in kwargs.items() if k not in ("observation", "layout_seeds")}
-    nnz = {k: K.build_tables(swiptopt.Scenario.preset(preset, **fields, layout_seed=k)).cov_node.size for k in range(12)}
+    nnz = {
+        k: K.build_tables(swiptopt.Scenario.preset(preset, **fields, layout_seed=k)).cov_node.size for k in range(12)
+    }
     small, big = min(nnz, key=nnz.get), max(nnz, key=nnz.get)
     assert nnz[big] > nnz[small]
     changes = {"layout_seed": small, "layout_seeds": None}
@@ -208,7 +212,7 @@ def test_controllers_see_the_rows():
     env.reset(seed=0)
     for a in _actions("continuous", 2, 7):
         _, _, _, _, infos = env.step(a)
-    for i, controller in enumerate(env.envs):
+    for controller in env.envs:
         assert controller.state.t == 7  # its state is the row the compiled step wrote
         assert controller.episode_metrics()["length"] == 7
     np.testing.assert_array_equal(env.positions, infos["position"])
