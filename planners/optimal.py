@@ -128,8 +128,12 @@ class MilpBudget:
 #: bound with HiGHS's sub-MIP heuristics). The time limits are safety nets far above what
 #: these budgets take (docs/optimum.md, 'On the paper preset', has their times).
 BUDGETS: dict[str, MilpBudget] = {
-    "quick": MilpBudget(max_nodes=1, polish_evaluations=2000, cut_rounds=2, sub_mip_heuristics=False, time_limit_s=300.0),
-    "compare": MilpBudget(max_nodes=1, polish_evaluations=20_000, cut_rounds=0, sub_mip_heuristics=False, time_limit_s=600.0),
+    "quick": MilpBudget(
+        max_nodes=1, polish_evaluations=2000, cut_rounds=2, sub_mip_heuristics=False, time_limit_s=300.0
+    ),
+    "compare": MilpBudget(
+        max_nodes=1, polish_evaluations=20_000, cut_rounds=0, sub_mip_heuristics=False, time_limit_s=600.0
+    ),
     "default": MilpBudget(max_nodes=500, polish_evaluations=50_000, cut_rounds=10, time_limit_s=1800.0),
 }
 
@@ -200,7 +204,8 @@ def policy_bounds(result: OptimumResult) -> list[PolicyBound]:
         return out
     if finite[1]:
         out.append(PolicyBound(float(result.lp_bound), LP_EXPECTED_NAME, ADAPTIVE))  # type: ignore[arg-type]
-    if finite[0] and result.details.get("can_end_early") is False and not (finite[1] and result.bound >= result.lp_bound):
+    if (finite[0] and result.details.get("can_end_early") is False
+            and not (finite[1] and result.bound >= result.lp_bound)):
         out.append(PolicyBound(float(result.bound), MILP_EXPECTED_NAME, OPEN_LOOP))  # type: ignore[arg-type]
     return out
 
@@ -427,33 +432,66 @@ class _Rows:
 
 
 def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
+    """The MILP of the module docstring over ``graph``: its columns, then its rows block by
+    block (the walk, the service, the visits and their connectivity)."""
     T = model.steps
     A, V = graph.n_arcs, len(graph.vertices)
     nodes = np.flatnonzero(model.coverable())
     N = len(nodes)
-    node_index = np.full(model.n_nodes, -1, dtype=np.int64)
-    node_index[nodes] = np.arange(N)
-    data = model.data_bits[nodes]
     room = model.room_j[nodes]
-
-    # the (vertex, node) pairs of the coverage lists: every vertex covers nodes but the start
-    vertex_of_cell = np.full(model.n_cells, -1, dtype=np.int64)
-    vertex_of_cell[graph.vertices] = np.arange(V)
-    pair_vertex = vertex_of_cell[model.cell_of_pair()]
-    pair_node = node_index[model.cov_node]
-    ok = pair_vertex >= 0
-    pair_vertex, pair_node = pair_vertex[ok], pair_node[ok]
+    pair_vertex, pair_node, pair_data, pair_energy = _pairs(model, graph, nodes)
     P = len(pair_vertex)
-    pair_data = model.bits[ok] / data[pair_node]
-    pair_energy = np.where(room[pair_node] > 0, model.joules[ok] / np.where(room > 0, room, 1.0)[pair_node], 0.0)
 
     sizes = dict(x=A, h=V, y=V, z=V, g=A, fd=P, fe=P, u=N, w=N, q=1, slack=1)
     edges = np.cumsum([0] + list(sizes.values()))
     blocks = {name: slice(int(edges[i]), int(edges[i + 1])) for i, name in enumerate(sizes)}
     ix = {name: b.start for name, b in blocks.items()}
     n_cols = int(edges[-1])
-    arcs, verts, pairs, nn = np.arange(A), np.arange(V), np.arange(P), np.arange(N)
     reach = T - np.where(np.isfinite(graph.from_start), graph.from_start, T + 1)  # steps left on arrival
+    k_flow = float(min(V - 1, T))
+    cost, lower, upper, integer = _columns(model, graph, nodes, pair_energy, blocks, n_cols, reach, k_flow)
+
+    rows = _Rows()
+    into = _arcs_into(graph)
+    _walk_rows(rows, model, graph, ix)
+    _service_rows(rows, model, ix, into, room, pair_vertex, pair_node, pair_data, pair_energy)
+    _visit_rows(rows, graph, ix, into, reach, k_flow)
+
+    matrix, row_lower, row_upper = rows.matrix(n_cols)
+    return _Program(
+        blocks, nodes, pair_vertex, pair_node, pair_data, pair_energy,
+        cost, lower, upper, integer, matrix, row_lower, row_upper,
+    )
+
+
+def _pairs(model: StepModel, graph: _ReducedGraph, nodes: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The (vertex, node) pairs of the coverage lists (every vertex covers nodes but the
+    start): each pair's vertex, its node's position in ``nodes``, and one step's data and
+    energy as fractions of the node's data and free storage."""
+    N = len(nodes)
+    node_index = np.full(model.n_nodes, -1, dtype=np.int64)
+    node_index[nodes] = np.arange(N)
+    data = model.data_bits[nodes]
+    room = model.room_j[nodes]
+    vertex_of_cell = np.full(model.n_cells, -1, dtype=np.int64)
+    vertex_of_cell[graph.vertices] = np.arange(len(graph.vertices))
+    pair_vertex = vertex_of_cell[model.cell_of_pair()]
+    pair_node = node_index[model.cov_node]
+    ok = pair_vertex >= 0
+    pair_vertex, pair_node = pair_vertex[ok], pair_node[ok]
+    pair_data = model.bits[ok] / data[pair_node]
+    pair_energy = np.where(room[pair_node] > 0, model.joules[ok] / np.where(room > 0, room, 1.0)[pair_node], 0.0)
+    return pair_vertex, pair_node, pair_data, pair_energy
+
+
+def _columns(
+    model: StepModel, graph: _ReducedGraph, nodes: np.ndarray, pair_energy: np.ndarray, blocks: dict[str, slice],
+    n_cols: int, reach: np.ndarray, k_flow: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The columns' objective, lower and upper bounds and integrality."""
+    T = model.steps
+    data = model.data_bits[nodes]
+    room = model.room_j[nodes]
     can_stop_early = graph.exact and model.can_finish_early()
 
     cost = np.zeros(n_cols)
@@ -469,8 +507,8 @@ def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
     upper[blocks["h"]] = np.maximum(reach, 0)
     upper[blocks["y"]] = reach >= 0
     upper[blocks["z"]] = reach >= 0
-    lower[ix["z"]] = upper[ix["z"]] = 1.0  # the start is where the walk begins
-    k_flow = float(min(V - 1, T))
+    z = blocks["z"].start
+    lower[z] = upper[z] = 1.0  # the start is where the walk begins
     upper[blocks["g"]] = np.where(graph.head == 0, 0.0, k_flow * upper[blocks["x"]])
     upper[blocks["fd"]] = 1.0
     upper[blocks["fe"]] = pair_energy > 0
@@ -481,11 +519,15 @@ def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
     integer = np.zeros(n_cols, dtype=bool)
     for name in ("x", "h", "y", "z", "q"):
         integer[blocks[name]] = True
+    return cost, lower, upper, integer
 
-    rows = _Rows()
-    into = _arcs_into(graph)
+
+def _walk_rows(rows: _Rows, model: StepModel, graph: _ReducedGraph, ix: dict[str, int]) -> None:
+    """Flow balance from the start to one end vertex, and the duration."""
+    T = model.steps
+    arcs, verts = np.arange(graph.n_arcs), np.arange(len(graph.vertices))
     # flow balance: out - in + end = [v is the start]
-    first = rows.add(V, 0.0, 0.0)
+    first = rows.add(len(verts), 0.0, 0.0)
     rows.lo[-1][0] = rows.hi[-1][0] = 1.0
     rows.put(first + graph.tail, ix["x"] + arcs, 1.0)
     rows.put(first + graph.head, ix["x"] + arcs, -1.0)
@@ -499,6 +541,15 @@ def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
     rows.put(row, ix["slack"], 1.0)
     if graph.exact:
         rows.put(rows.add(1, -np.inf, 0.0), [ix["slack"], ix["q"]], [1.0, -float(T)])
+
+
+def _service_rows(
+    rows: _Rows, model: StepModel, ix: dict[str, int], into: list[np.ndarray], room: np.ndarray,
+    pair_vertex: np.ndarray, pair_node: np.ndarray, pair_data: np.ndarray, pair_energy: np.ndarray,
+) -> None:
+    """What each pair and node receives, and every node served when the walk stops early."""
+    P, N = len(pair_vertex), len(room)
+    pairs, nn = np.arange(P), np.arange(N)
     # service per pair: at most what its steps deliver, and at most everything, only if visited
     # (sum over v of min(n_v a_vi, z_v) >= min(1, sum over v of n_v a_vi) for whole counts)
     for name, amount in (("fd", pair_data), ("fe", pair_energy)):
@@ -525,6 +576,14 @@ def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
         first = rows.add(len(full), -np.inf, 0.0)
         rows.put(first + np.arange(len(full)), ix["q"], 1.0)
         rows.put(first + np.arange(len(full)), ix["w"] + full, -1.0)
+
+
+def _visit_rows(
+    rows: _Rows, graph: _ReducedGraph, ix: dict[str, int], into: list[np.ndarray], reach: np.ndarray, k_flow: float
+) -> None:
+    """Arrivals only at visited vertices, a visited vertex entered, and the connectivity flow."""
+    A, V = graph.n_arcs, len(graph.vertices)
+    arcs, verts = np.arange(A), np.arange(V)
     # arrivals only at visited vertices, and a visited vertex is entered
     others = verts[1:]
     in_counts = np.array([into[v].size for v in others], dtype=np.int64)
@@ -546,12 +605,6 @@ def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
     out = graph.tail > 0
     rows.put(first + graph.tail[out] - 1, ix["g"] + arcs[out], -1.0)
     rows.put(first + others - 1, ix["z"] + others, -1.0)
-
-    matrix, row_lower, row_upper = rows.matrix(n_cols)
-    return _Program(
-        blocks, nodes, pair_vertex, pair_node, pair_data, pair_energy,
-        cost, lower, upper, integer, matrix, row_lower, row_upper,
-    )
 
 
 def _arcs_into(graph: _ReducedGraph) -> list[np.ndarray]:
@@ -593,7 +646,9 @@ def _highs(program: _Program, budget: MilpBudget, *, relax: bool, time_limit_s: 
     lp.a_matrix_.index_ = m.indices
     lp.a_matrix_.value_ = m.data
     if not relax:
-        lp.integrality_ = [highspy.HighsVarType.kInteger if i else highspy.HighsVarType.kContinuous for i in program.integer]
+        lp.integrality_ = [
+            highspy.HighsVarType.kInteger if i else highspy.HighsVarType.kContinuous for i in program.integer
+        ]
     h.passModel(lp)
     return h
 
@@ -604,25 +659,7 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
     program = _program(model, graph)
     cols = program.blocks
     exact = bool(model.exact and graph.exact)
-
-    # the linear relaxation, tightened by rounds of connectivity cuts: a bound of its own
-    lp_started = time.perf_counter()
-    h = _highs(program, budget, relax=True, time_limit_s=budget.time_limit_s)
-    cuts: list[tuple[np.ndarray, np.ndarray]] = []
-    lp_bound = None
-    for _ in range(budget.cut_rounds + 1):
-        h.run()
-        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-            break
-        value = float(h.getInfo().objective_function_value)
-        lp_bound = value if lp_bound is None else min(lp_bound, value)  # each round's is a bound
-        values = np.asarray(h.getSolution().col_value)
-        found = _separate(graph, values[cols["x"]], values[cols["z"]], cols)
-        if not found or len(cuts) >= budget.cut_rounds * len(graph.vertices):
-            break
-        _add_cuts(h, found)
-        cuts.extend(found)
-    lp_time = time.perf_counter() - lp_started
+    lp_bound, cuts, lp_time = _relaxation_bound(program, graph, budget)
 
     from planners.rate_greedy import rate_greedy_actions
     from planners.walk_search import polish_walk
@@ -678,24 +715,65 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
         bound = min(bound, lp_bound)
     details["highs_objective"] = float(info.objective_function_value)
     details["steps_run"] = used
+    state, message = _verdict(model, graph, budget, objective, bound, status == highspy.HighsModelStatus.kOptimal)
+    if time_hit:
+        message += (f"; the safety time limit ({budget.time_limit_s:g} s) was hit, "
+                    "so this result depends on the machine's speed")
+    return OptimumResult(
+        state, message, objective, bound, lp_bound, lp_time, actions, exact, nodes, time_hit, wall, details
+    )
+
+
+def _relaxation_bound(
+    program: _Program, graph: _ReducedGraph, budget: MilpBudget
+) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]], float]:
+    """The linear relaxation, tightened by rounds of connectivity cuts: its bound (the least
+    of every round's value, each a bound; None if it did not solve), the cuts and its time, s."""
+    import highspy
+
+    cols = program.blocks
+    lp_started = time.perf_counter()
+    h = _highs(program, budget, relax=True, time_limit_s=budget.time_limit_s)
+    cuts: list[tuple[np.ndarray, np.ndarray]] = []
+    lp_bound = None
+    for _ in range(budget.cut_rounds + 1):
+        h.run()
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            break
+        value = float(h.getInfo().objective_function_value)
+        lp_bound = value if lp_bound is None else min(lp_bound, value)  # each round's is a bound
+        values = np.asarray(h.getSolution().col_value)
+        found = _separate(graph, values[cols["x"]], values[cols["z"]], cols)
+        if not found or len(cuts) >= budget.cut_rounds * len(graph.vertices):
+            break
+        _add_cuts(h, found)
+        cuts.extend(found)
+    lp_time = time.perf_counter() - lp_started
+    return lp_bound, cuts, lp_time
+
+
+def _verdict(
+    model: StepModel, graph: _ReducedGraph, budget: MilpBudget, objective: float, bound: float | None,
+    highs_optimal: bool,
+) -> tuple[str, str]:
+    """The status and message of a walk worth ``objective`` under ``bound``."""
+    exact = bool(model.exact and graph.exact)
     gap = (bound - objective) / max(abs(bound), 1e-12) if bound is not None else math.inf
     # HiGHS proves optimality up to its feasibility tolerance (1e-6): its own verdict counts
-    if exact and (gap <= max(budget.rel_gap, 1e-9) or status == highspy.HighsModelStatus.kOptimal):
-        state, message = "optimal", "optimal within the budget's rel_gap and the solver's tolerances"
-    else:
-        state = "feasible"
-        message = f"best walk with a gap of {100 * gap:.3g} % to the bound"
-        relaxed = [reason for reason, applies in (
-            ("expected-rate relaxation", not model.exact), ("current: relaxed arcs", not graph.exact)
-        ) if applies]
-        if relaxed:
-            message += f" ({'; '.join(relaxed)})"
-    if time_hit:
-        message += f"; the safety time limit ({budget.time_limit_s:g} s) was hit, so this result depends on the machine's speed"
-    return OptimumResult(state, message, objective, bound, lp_bound, lp_time, actions, exact, nodes, time_hit, wall, details)
+    if exact and (gap <= max(budget.rel_gap, 1e-9) or highs_optimal):
+        return "optimal", "optimal within the budget's rel_gap and the solver's tolerances"
+    message = f"best walk with a gap of {100 * gap:.3g} % to the bound"
+    relaxed = [reason for reason, applies in (
+        ("expected-rate relaxation", not model.exact), ("current: relaxed arcs", not graph.exact)
+    ) if applies]
+    if relaxed:
+        message += f" ({'; '.join(relaxed)})"
+    return "feasible", message
 
 
-def _separate(graph: _ReducedGraph, x: np.ndarray, z: np.ndarray, cols: dict[str, slice]) -> list[tuple[np.ndarray, np.ndarray]]:
+def _separate(
+    graph: _ReducedGraph, x: np.ndarray, z: np.ndarray, cols: dict[str, slice]
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Connectivity cuts the linear relaxation violates, as (columns, coefficients) rows >= 0.
 
     For a visited vertex v, every set S of vertices holding v but not the start must be
@@ -813,7 +891,6 @@ def _warm_start(model: StepModel, graph: _ReducedGraph, program: _Program, actio
     cols = program.blocks
     V = len(graph.vertices)
     index = {int(c): i for i, c in enumerate(graph.vertices)}
-    arc_of = {(int(t), int(h)): a for a, (t, h) in enumerate(zip(graph.tail, graph.head))}
     x = np.zeros(graph.n_arcs)
     hov = np.zeros(V)
     visits: list[int] = []
