@@ -160,6 +160,27 @@ class _TimeProgram:
     stop_col: dict[tuple[int, int], int]
 
 
+class _Triplets:
+    """Collects sparse constraint rows one at a time, as (row, column, value) triplets."""
+
+    def __init__(self) -> None:
+        self.r: list[int] = []
+        self.c: list[int] = []
+        self.v: list[float] = []
+        self.lo: list[float] = []
+        self.hi: list[float] = []
+
+    def row(self, entries: list[tuple[int, float]], low: float, high: float) -> None:
+        """Append the row ``low <= sum of value * column <= high`` over ``entries``."""
+        k = len(self.lo)
+        for col, val in entries:
+            self.r.append(k)
+            self.c.append(col)
+            self.v.append(val)
+        self.lo.append(low)
+        self.hi.append(high)
+
+
 class _Layout:
     """The columns and rows shared by every table of a scenario (only the amounts change)."""
 
@@ -229,23 +250,21 @@ class _Layout:
         """The program for one table's (steps, nnz) uncapped amounts."""
         from scipy.sparse import coo_matrix
 
-        model, graph = self.model, self.graph
-        T, V, N = model.steps, len(graph.vertices), len(self.nodes)
-        r: list[int] = []
-        c: list[int] = []
-        v_: list[float] = []
-        lo: list[float] = []
-        hi: list[float] = []
+        rows = _Triplets()
+        self._flow_rows(rows)
+        self._service_rows(rows, bits, joules)
+        self._stop_rows(rows)
+        matrix = coo_matrix((rows.v, (rows.r, rows.c)), shape=(len(rows.lo), self.n_cols)).tocsc()
+        matrix.sum_duplicates()
+        return _TimeProgram(
+            self.cost, self.lower, self.upper, self.integer, matrix, np.array(rows.lo), np.array(rows.hi),
+            self.arc_col, self.hover_col, self.stop_col,
+        )
 
-        def row(entries: list[tuple[int, float]], low: float, high: float) -> None:
-            k = len(lo)
-            for col, val in entries:
-                r.append(k)
-                c.append(col)
-                v_.append(val)
-            lo.append(low)
-            hi.append(high)
-
+    def _flow_rows(self, rows: _Triplets) -> None:
+        """Flow: what leaves (v, tau) is what arrived, one unit from the start at step 0."""
+        graph = self.graph
+        T, V = self.model.steps, len(graph.vertices)
         out: dict[tuple[int, int], list[int]] = {}
         into: dict[tuple[int, int], list[int]] = {}
         for (a, tau), col in self.arc_col.items():
@@ -256,17 +275,20 @@ class _Layout:
             into.setdefault((v, tau + 1), []).append(col)
         for (v, tau), col in self.stop_col.items():
             out.setdefault((v, tau), []).append(col)
-        # flow: what leaves (v, tau) is what arrived, one unit from the start at step 0
         for v in range(V):
             for tau in range(self.reach[v], T):
                 entries = [(col, 1.0) for col in out.get((v, tau), [])]
                 if tau >= 1:
                     entries.append((self.arr_col[(v, tau)], -1.0))
                 supply = 1.0 if (v == 0 and tau == 0) else 0.0
-                row(entries, supply, supply)
+                rows.row(entries, supply, supply)
             for tau in range(max(1, self.reach[v]), T + 1):
-                row([(self.arr_col[(v, tau)], 1.0)] + [(col, -1.0) for col in into.get((v, tau), [])], 0.0, 0.0)
-        # cumulative service fractions, step by step
+                rows.row([(self.arr_col[(v, tau)], 1.0)] + [(col, -1.0) for col in into.get((v, tau), [])], 0.0, 0.0)
+
+    def _service_rows(self, rows: _Triplets, bits: np.ndarray, joules: np.ndarray) -> None:
+        """The cumulative service fractions, step by step, and what each node is served in all."""
+        model = self.model
+        T, N = model.steps, len(self.nodes)
         data, room = model.data_bits[self.nodes], model.room_j[self.nodes]
         ok = self.pair_vertex >= 0
         for block, amounts, caps in ((self.cum_data, bits, data), (self.cum_energy, joules, room)):
@@ -274,36 +296,37 @@ class _Layout:
                 per_node: dict[int, list[tuple[int, float]]] = {i: [] for i in range(N)}
                 for p in np.flatnonzero(ok & (amounts[tau - 1] > 0)):
                     i = int(self.pair_node[p])
-                    if caps[i] > 0 and (int(self.pair_vertex[p]), tau) in self.arr_col:
-                        per_node[i].append((self.arr_col[(int(self.pair_vertex[p]), tau)], -amounts[tau - 1, p] / caps[i]))
+                    arrival = (int(self.pair_vertex[p]), tau)
+                    if caps[i] > 0 and arrival in self.arr_col:
+                        per_node[i].append((self.arr_col[arrival], -amounts[tau - 1, p] / caps[i]))
                 for i in range(N):
                     entries = [(block + i * T + tau - 1, 1.0)] + per_node[i]
                     if tau > 1:
                         entries.append((block + i * T + tau - 2, -1.0))
-                    row(entries, 0.0, 0.0)
+                    rows.row(entries, 0.0, 0.0)
         for i in range(N):
-            row([(self.served + i, 1.0), (self.cum_data + i * T + T - 1, -1.0)], -np.inf, 0.0)
+            rows.row([(self.served + i, 1.0), (self.cum_data + i * T + T - 1, -1.0)], -np.inf, 0.0)
             if room[i] > 0:
-                row([(self.served + N + i, 1.0), (self.cum_energy + i * T + T - 1, -1.0)], -np.inf, 0.0)
-        # a walk stops at tau only once every node is served: its data, and its storage full
-        # (to the kernel's tolerance) when Gamma < 1
-        if self.can_stop:
-            tolerance = 1e-12 * model.capacity_j[self.nodes] / np.where(room > 0, room, 1.0)
-            for tau in range(1, T):
-                stops = [(col, 1.0) for (v, t), col in self.stop_col.items() if t == tau]
-                if not stops:
-                    continue
-                for i in range(N):
-                    row(stops + [(self.cum_data + i * T + tau - 1, -1.0)], -np.inf, 0.0)
-                    if model.needs_energy and room[i] > 0:
-                        row([(col, 1.0 - tolerance[i]) for col, _ in stops]
-                            + [(self.cum_energy + i * T + tau - 1, -1.0)], -np.inf, 0.0)
-        matrix = coo_matrix((v_, (r, c)), shape=(len(lo), self.n_cols)).tocsc()
-        matrix.sum_duplicates()
-        return _TimeProgram(
-            self.cost, self.lower, self.upper, self.integer, matrix, np.array(lo), np.array(hi),
-            self.arc_col, self.hover_col, self.stop_col,
-        )
+                rows.row([(self.served + N + i, 1.0), (self.cum_energy + i * T + T - 1, -1.0)], -np.inf, 0.0)
+
+    def _stop_rows(self, rows: _Triplets) -> None:
+        """A walk stops at tau only once every node is served: its data, and its storage full
+        (to the kernel's tolerance) when Gamma < 1."""
+        if not self.can_stop:
+            return
+        model = self.model
+        T, N = model.steps, len(self.nodes)
+        room = model.room_j[self.nodes]
+        tolerance = 1e-12 * model.capacity_j[self.nodes] / np.where(room > 0, room, 1.0)
+        for tau in range(1, T):
+            stops = [(col, 1.0) for (v, t), col in self.stop_col.items() if t == tau]
+            if not stops:
+                continue
+            for i in range(N):
+                rows.row(stops + [(self.cum_data + i * T + tau - 1, -1.0)], -np.inf, 0.0)
+                if model.needs_energy and room[i] > 0:
+                    rows.row([(col, 1.0 - tolerance[i]) for col, _ in stops]
+                             + [(self.cum_energy + i * T + tau - 1, -1.0)], -np.inf, 0.0)
 
     def walk(self, values: np.ndarray) -> list[int]:
         """The walk of an integer solution, as one action per step (stays after a stop)."""
@@ -359,7 +382,8 @@ def hindsight_walk(
     if reason:
         raise ConfigError(reason)
     model = step_model(tables)
-    return _solve_table(_Layout(model, _ReducedGraph.build(model)), tables, draws, HindsightBudget() if budget is None else budget)
+    layout = _Layout(model, _ReducedGraph.build(model))
+    return _solve_table(layout, tables, draws, HindsightBudget() if budget is None else budget)
 
 
 def _solve_table(layout: _Layout, tables: K.Tables, draws: Draws, budget: HindsightBudget) -> HindsightSample:
@@ -423,7 +447,9 @@ class HindsightResult:
     def policy_bound(self) -> PolicyBound | None:
         """The upper confidence limit as a bound for every non-anticipative policy (``hindsight``)."""
         limit = self.upper_limit
-        return None if limit is None or not math.isfinite(limit) else PolicyBound(float(limit), HINDSIGHT_NAME, ADAPTIVE)
+        if limit is None or not math.isfinite(limit):
+            return None
+        return PolicyBound(float(limit), HINDSIGHT_NAME, ADAPTIVE)
 
     @property
     def proven(self) -> int:
@@ -468,5 +494,6 @@ def hindsight_bound(
     best_mean = float(np.mean(best)) if all(b is not None for b in best) else None
     message = f"{sum(s.optimal for s in samples)}/{len(samples)} tables solved to optimality"
     if any(s.time_limit_hit for s in samples):
-        message += f"; the safety time limit ({budget.time_limit_s:g} s) was hit, so this result depends on the machine's speed"
+        message += (f"; the safety time limit ({budget.time_limit_s:g} s) was hit, "
+                    "so this result depends on the machine's speed")
     return HindsightResult("ok", message, mean, ci, best_mean, samples, time.perf_counter() - started)
