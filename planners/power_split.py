@@ -83,7 +83,7 @@ from swiptopt.link import auv_power, link_budget, reward_references
 from swiptopt.validation import Spec, check_value
 
 if TYPE_CHECKING:
-    cp = _cvxpy()
+    import cvxpy as cp
 
     from swiptopt.scenario import Scenario
 
@@ -518,19 +518,9 @@ class DwellSplitProblem:
         and ``snr_linear`` > 0 inside it (values outside are ignored).
         """
         shape = self.coverage_mask.shape
-        k_of, i_of = self._hover_of_pair, self._node_of_pair
-        gamma = _array("snr_linear", snr_linear, shape)
-        p_av = _array("available_power_w", available_power_w, shape)
-        if np.any(p_av[~self.coverage_mask] > 0):
-            raise ConfigError(
-                "available_power_w is positive at a pair outside the coverage mask the problem was built for",
-                "available_power_w",
-            )
-        if np.any(gamma[self.coverage_mask] <= 0):
-            raise ConfigError("snr_linear must be > 0 at every covered pair", "snr_linear")
-        data = _array("data_bits", data_bits, shape[1:])
-        room = _array("storage_room_j", storage_room_j, shape[1:])
-        min_energy = np.zeros(shape[1]) if min_energy_j is None else _array("min_energy_j", min_energy_j, shape[1:])
+        gamma, p_av, data, room, min_energy = self._checked_amounts(
+            snr_linear, available_power_w, data_bits, storage_room_j, min_energy_j
+        )
         gw, bw, eta, d_ref, e_ref = _model_scalars(reward_weight, bandwidth_hz, efficiency, data_ref_bits, energy_ref_j)
         budgets = self._budgets(mission_time_s, energy_budget_j, dwell_power_w)
 
@@ -543,7 +533,9 @@ class DwellSplitProblem:
             return _nothing_covered(shape)
         if split_ratio is not None:
             alpha = _scalar("split_ratio", split_ratio)
-            return self._solve_fixed_split(alpha, gamma, p_av, data, room, min_energy, budgets, gw, bw, eta, d_ref, e_ref)
+            return self._solve_fixed_split(
+                alpha, gamma, p_av, data, room, min_energy, budgets, gw, bw, eta, d_ref, e_ref
+            )
 
         solver = self.solver or default_solver()
         if solver is None:
@@ -551,7 +543,48 @@ class DwellSplitProblem:
         with_minimum = bool(np.any(min_energy > 0))
         problem, v, pr = self._problem(with_minimum)
         scale = _time_scale(budgets)
-        g = gamma[k_of, i_of]
+        g = gamma[self._hover_of_pair, self._node_of_pair]
+        self._set_parameters(pr, g, p_av, data, room, min_energy, budgets, scale, gw, bw, eta, d_ref, e_ref)
+
+        attempts = self._attempts(solver)
+        start = time.perf_counter()
+        status, note, solver = self._run_attempts(problem, attempts, solver)
+        elapsed = time.perf_counter() - start
+        if status not in ("optimal", "optimal_inaccurate"):
+            return _failed(status, elapsed, solver, note)
+        return self._result(
+            status, float(v["value"].value) * scale, v, scale, bw, e_ref, elapsed, solver, note, (pr, g, budgets, scale)
+        )
+
+    def _checked_amounts(
+        self, snr_linear: ArrayLike, available_power_w: ArrayLike, data_bits: ArrayLike, storage_room_j: ArrayLike,
+        min_energy_j: ArrayLike | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The per-pair and per-node arrays of :meth:`solve`, checked against the coverage mask."""
+        shape = self.coverage_mask.shape
+        gamma = _array("snr_linear", snr_linear, shape)
+        p_av = _array("available_power_w", available_power_w, shape)
+        if np.any(p_av[~self.coverage_mask] > 0):
+            raise ConfigError(
+                "available_power_w is positive at a pair outside the coverage mask the problem was built for",
+                "available_power_w",
+            )
+        if np.any(gamma[self.coverage_mask] <= 0):
+            raise ConfigError("snr_linear must be > 0 at every covered pair", "snr_linear")
+        data = _array("data_bits", data_bits, shape[1:])
+        room = _array("storage_room_j", storage_room_j, shape[1:])
+        min_energy = np.zeros(shape[1]) if min_energy_j is None else _array("min_energy_j", min_energy_j, shape[1:])
+        return gamma, p_av, data, room, min_energy
+
+    def _set_parameters(
+        self, pr: dict[str, Any], g: np.ndarray, p_av: np.ndarray, data: np.ndarray, room: np.ndarray,
+        min_energy: np.ndarray, budgets: dict[str, Any], scale: float, gw: float, bw: float, eta: float,
+        d_ref: float, e_ref: float,
+    ) -> None:
+        """The values of the conic program's parameters ``pr`` for this solve (``g``: each
+        pair's SNR), in units of the time scale ``scale``."""
+        shape = self.coverage_mask.shape
+        k_of, i_of = self._hover_of_pair, self._node_of_pair
         c = np.maximum(g, 1.0)
         served = self._served_nodes
         pr["log_c"].value = fpmath.log(c)
@@ -567,22 +600,33 @@ class DwellSplitProblem:
         np.maximum.at(reach_room, i_of, eta * p_av[k_of, i_of] / e_ref * longest)
         pr["info_cap"].value = np.minimum(data * LN2 / bw, reach_info)[served] / scale
         pr["room"].value = np.minimum(room / e_ref, reach_room)[served] / scale
-        if with_minimum:
+        if "min_energy" in pr:  # the problem was built with the minimum-energy rows
             pr["min_energy"].value = min_energy[served] / e_ref / scale
         pr["w_info"].value = gw * bw / (LN2 * d_ref)
         pr["w_energy"].value = 1.0 - gw
-        best_rate = float(np.max(pr["w_info"].value * fpmath.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value))
+        best_rate = float(
+            np.max(pr["w_info"].value * fpmath.log1p(g) + pr["w_energy"].value * pr["harvest_rate"].value)
+        )
         pr["tie_break"].value = DWELL_TIE_BREAK * best_rate
         for name, value in budgets.items():
             pr[name].value = value / scale if name in ("time_budget", "energy_budget") else value
 
+    def _attempts(self, solver: str) -> list[tuple[str, Mapping[str, Any], str]]:
+        """(solver, options, fallback) in the order tried: ``solver`` with the problem's
+        options, then, by default, the numerical-failure retries (``fallback`` says which)."""
         attempts = [(solver, self.solver_options, "")]
         if self.solver is None:  # the default: retry numerical failures, looser, then with SCS
             if solver == "CLARABEL":
                 attempts += [("CLARABEL", options, f"Clarabel with {options}") for options in CLARABEL_RETRIES]
             if solver != "SCS" and "SCS" in _cvxpy().installed_solvers():
                 attempts.append(("SCS", {}, "SCS after Clarabel failed"))
-        start = time.perf_counter()
+        return attempts
+
+    def _run_attempts(
+        self, problem: Any, attempts: list[tuple[str, Mapping[str, Any], str]], solver: str
+    ) -> tuple[str, str, str]:
+        """(status, note, solver) of the first attempt that counts: the first that does not
+        fail, or a fallback that converged; else ``solver_error`` with every attempt's note."""
         status, note = "solver_error", ""
         notes = []
         for name, options, fallback in attempts:
@@ -599,12 +643,7 @@ class DwellSplitProblem:
                 break
         if status == "solver_error":
             note = "; ".join(notes)
-        elapsed = time.perf_counter() - start
-        if status not in ("optimal", "optimal_inaccurate"):
-            return _failed(status, elapsed, solver, note)
-        return self._result(
-            status, float(v["value"].value) * scale, v, scale, bw, e_ref, elapsed, solver, note, (pr, g, budgets, scale)
-        )
+        return status, note, solver
 
     def _solve_fixed_split(
         self, alpha: float, gamma: np.ndarray, p_av: np.ndarray, data: np.ndarray, room: np.ndarray,
@@ -651,7 +690,9 @@ class DwellSplitProblem:
         b_ub = np.concatenate([np.zeros(2 * n_served), budget_caps])
         cost = np.concatenate([np.full(n_hover, tie), np.full(n_served, -w_info), np.full(n_served, -w_energy)])
         lower = np.concatenate([np.zeros(n_hover + n_served), min_energy[served] / e_ref / scale])
-        upper = np.concatenate([np.full(n_hover, np.inf), data[served] * LN2 / bw / scale, room[served] / e_ref / scale])
+        upper = np.concatenate(
+            [np.full(n_hover, np.inf), data[served] * LN2 / bw / scale, room[served] / e_ref / scale]
+        )
         if np.any(lower > upper):
             return _failed("infeasible", 0.0, "HIGHS", "a node's minimum energy exceeds its storage room")
 
@@ -733,7 +774,8 @@ class DwellSplitProblem:
         achieved = self._achievable_value(dwell, split, *check)
         if abs(achieved - objective) > VALUE_CHECK_RTOL * max(1.0, abs(objective)):
             status = "optimal_inaccurate"
-            note = f"{note + '; ' if note else ''}the solver's value {objective:.9g}, its dwells and splits give {achieved:.9g}"
+            note = (f"{note + '; ' if note else ''}the solver's value {objective:.9g}, "
+                    f"its dwells and splits give {achieved:.9g}")
         return PowerSplitResult(status, objective, dwell, split, bits, energy, elapsed, solver, note)
 
     def _achievable_value(self, dwell: np.ndarray, split: np.ndarray, pr: dict[str, Any], g: np.ndarray,
@@ -747,7 +789,8 @@ class DwellSplitProblem:
         if "time_budget" in budgets:
             fits = min(fits, float(budgets["time_budget"]) / max(float(dwell.sum()), 1e-300))
         if "energy_budget" in budgets:
-            fits = min(fits, float(budgets["energy_budget"]) / max(float(fpmath.dot(budgets["dwell_power"], dwell)), 1e-300))
+            spent = float(fpmath.dot(budgets["dwell_power"], dwell))
+            fits = min(fits, float(budgets["energy_budget"]) / max(spent, 1e-300))
         t = dwell[k_of] * min(1.0, fits) / scale  # in the program's unit of time
         alpha = np.nan_to_num(split[k_of, self._node_of_pair])
         n = self._served_nodes.size
