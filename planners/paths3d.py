@@ -25,8 +25,27 @@ smallest obstacle dimension (box edge or sphere diameter), so the growth stays b
 of any obstacle; it shrinks further when the start or goal sits closer to an obstacle
 than g/2. The cost is a slightly conservative path (and gaps narrower than g close).
 
-Seeding. OMPL draws from one process-wide seed generator; ``ompl.util.RNG.setSeed`` is
-meant to be called once, before the first planner exists. See :func:`plan_path_3d`.
+Seeding. OMPL draws from one process-wide seed generator that seeds every RNG as it is
+created; ``ompl.util.RNG.setSeed`` is meant to be called once, before the first planner
+exists. So :func:`plan_path_3d` sets its ``seed`` once per process, on the first call that
+passes one, and that call must come before any unseeded call (which would have drawn numbers
+already). Later calls with the same seed continue the random stream (they do not replay the
+first plan); a different seed, or a seed after an unseeded call, raises ``ConfigError``
+instead of reseeding. (Checked on ompl 2.0.1: a late ``RNG.setSeed`` logs "Random number
+generation already started" yet does reseed the RNGs created afterwards, while
+``RNG.getSeed()`` keeps reporting the first seed; OMPL documents late seeding as
+unsupported, so this module does not rely on it.) A seed fixes the sample sequence of a
+fresh process; planners that stop at the first solution (RRTConnect) then repeat their path
+exactly. Anytime planners stop at a wall-clock limit, so their iteration count depends on
+the machine's speed and load: in fresh processes with the same seed they repeated their
+paths on an idle machine and differed under CPU load.
+
+Iteration budgets. With ``iterations``, OMPL's solve stops after that many evaluations of
+its termination condition (the tree planners evaluate it once per iteration: one sample,
+extension and rewiring), and the simplification after ``SIMPLIFY_ITERATION_SHARE`` of as
+many (at least one round). In one process, a seed and the same sequence of calls give the
+same paths on any machine and under any load (no thread is involved: the condition is a
+counting Python callable evaluated by the planner's own loop).
 
 ``ompl`` is imported inside the functions, so ``import planners.paths3d`` stays light.
 """
@@ -199,7 +218,8 @@ def segment_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> np.ndarray:
         scenario.water_density_kg_m3,
         scenario.propulsion_efficiency,
     )
-    return auv.move_energy_j(dist, scenario.speed_mps, fpmath.dot(power_w, np.asarray(_GAUSS_W)), scenario.hotel_power_w)
+    mean_power_w = fpmath.dot(power_w, np.asarray(_GAUSS_W))
+    return auv.move_energy_j(dist, scenario.speed_mps, mean_power_w, scenario.hotel_power_w)
 
 
 def path_energy_j(waypoints_m: np.ndarray, scenario: Scenario) -> float:
@@ -483,7 +503,7 @@ class _World:
 
     def smallest_obstacle_m(self) -> float:
         sizes = [
-            2.0 * o.radius_m if isinstance(o, Sphere) else min(h - l for l, h in zip(o.min_m, o.max_m))
+            2.0 * o.radius_m if isinstance(o, Sphere) else min(hi - lo for lo, hi in zip(o.min_m, o.max_m))
             for o in self.obstacles
         ]
         return min(sizes, default=math.inf)
@@ -514,7 +534,9 @@ class _World:
         """The packed arrays (geom, seabed heights) of the compiled checks, for the obstacles
         grown by ``grow_m`` and the seabed raised by ``grow_m`` times its stretch."""
         head = [*self.high, grow_m, 0.0, 0.0, 0.0, 0.0]
-        spheres = [(*map(float, o.center_m), (o.radius_m + grow_m) ** 2) for o in self.obstacles if isinstance(o, Sphere)]
+        spheres = [
+            (*map(float, o.center_m), (o.radius_m + grow_m) ** 2) for o in self.obstacles if isinstance(o, Sphere)
+        ]
         boxes = [(*map(float, o.min_m), *map(float, o.max_m)) for o in self.obstacles if isinstance(o, Box)]
         head[G_SPHERES], head[G_BOXES] = float(len(spheres)), float(len(boxes))
         heights = np.zeros((0, 0))
@@ -561,7 +583,7 @@ def _world_from(scenario_or_obstacles: Any, bounds: Any) -> tuple[_World, Scenar
     except (TypeError, ValueError):
         raise ConfigError(f"bounds = {bounds!r} must be ((xmin, ymin, zmin), (xmax, ymax, zmax))", "bounds") from None
     well_formed = len(low) == 3 and len(high) == 3 and all(math.isfinite(v) for v in low + high)
-    if not well_formed or not all(l < h for l, h in zip(low, high)):
+    if not well_formed or not all(lo < hi for lo, hi in zip(low, high)):
         raise ConfigError(f"bounds = {bounds!r} must be two finite corners with min < max on every axis", "bounds")
     return _World(low, high, obstacles, None), None  # type: ignore[arg-type]
 
@@ -574,7 +596,7 @@ def _checked_point(name: str, point: Any, world: _World, clearance_m: float) -> 
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise ConfigError(f"{name} = {point!r} must be three finite numbers (x, y, depth)", name)
     xyz = (float(p[0]), float(p[1]), float(p[2]))
-    if not all(l <= v <= h for v, l, h in zip(xyz, world.low, world.high)):
+    if not all(lo <= v <= hi for v, lo, hi in zip(xyz, world.low, world.high)):
         raise ConfigError(f"{name} = {xyz} lies outside the bounds {world.low} .. {world.high}", name)
     for dist, what in zip(world.distances_m(p)[0], world.names()):
         if dist <= clearance_m:
@@ -760,33 +782,18 @@ def plan_path_3d(
             travel time), as a Python ``OptimizationObjective`` with an admissible
             per-metre lower bound as its heuristic. With no current it is the length
             times a constant.
-        seed: OMPL's random seed. OMPL has one process-wide seed generator that seeds
-            every RNG as it is created, so the seed is set once per process, on the first
-            call that passes one, and must come before any unseeded call (which would have
-            drawn numbers already). Later calls with the same seed continue the random
-            stream (they do not replay the first plan); a different seed, or a seed after an
-            unseeded call, raises :class:`ConfigError` instead of reseeding. (Checked on
-            ompl 2.0.1: a late ``RNG.setSeed`` logs "Random number generation already
-            started" yet does reseed the RNGs created afterwards, while ``RNG.getSeed()``
-            keeps reporting the first seed; OMPL documents late seeding as unsupported, so
-            this function does not rely on it.) A seed fixes the sample sequence of a fresh
-            process; planners that stop at the first solution (RRTConnect) then repeat their
-            path exactly. Anytime planners stop at a wall-clock limit, so their iteration
-            count depends on the machine's speed and load: in fresh processes with the same
-            seed they repeated their paths on an idle machine and differed under CPU load.
+        seed: OMPL's random seed, set once per process, on the first call that passes one,
+            before any unseeded call; a different seed, or a seed after an unseeded call,
+            raises :class:`ConfigError` instead of reseeding (module docstring, Seeding).
         bounds: ((xmin, ymin, zmin), (xmax, ymax, zmax)) for an obstacle list; None with a
             Scenario.
         clearance_m: keep at least this distance from every obstacle, m.
         simplify: shortcut and smooth the path with OMPL's PathSimplifier (objective-aware);
             the result is kept only if it is valid and no worse under the objective.
-        iterations: a deterministic budget instead of the wall clock: OMPL's solve stops
-            after this many evaluations of its termination condition (the tree planners
-            evaluate it once per iteration: one sample, extension and rewiring), and the
-            simplification after ``SIMPLIFY_ITERATION_SHARE`` of as many (at least one round).
-            ``time_limit_s`` is then not used. In one process, a seed and the same sequence of
-            calls give the same paths on any machine and under any load (no thread is
-            involved: the condition is a counting Python callable evaluated by the planner's
-            own loop). ``None``: the wall-clock limit.
+        iterations: a deterministic budget instead of the wall clock (module docstring,
+            Iteration budgets): the solve stops after this many planner iterations, the
+            simplification after ``SIMPLIFY_ITERATION_SHARE`` of as many (at least one
+            round), and ``time_limit_s`` is not used. ``None``: the wall-clock limit.
 
     Returns a :class:`PathResult`; no path within the limit is a status, not an exception.
     Sets OMPL's log level to ``LOG_NONE`` (process-wide) so that nothing prints.
@@ -809,12 +816,37 @@ def plan_path_3d(
         energy = 0.0 if scenario is not None else None
         return PathResult(waypoints, 0.0, True, "exact", name, objective, 0.0, 0.0, energy, spacing)
 
-    from ompl import base as ob
-    from ompl import geometric as og
     from ompl import util as ou
 
     ou.setLogLevel(ou.LOG_NONE)
     _apply_seed(seed)
+    ompl = _ompl_setup(world, scenario, name, objective, a, b, spacing, clearance_m)
+    outcome, path, solve_time_s, simplify_time_s = _solve_and_simplify(ompl, a, time_limit_s, iterations, simplify)
+    return _path_result(ompl, outcome, path, b, scenario, name, objective, solve_time_s, simplify_time_s, spacing)
+
+
+@dataclass(eq=False)
+class _OmplSetup:
+    """An OMPL ``SimpleSetup`` ready to solve and its objective, with every Python object OMPL
+    holds or calls back into (the space, the validity checker, the motion validator, the
+    states), kept here so that they live as long as the setup is in use."""
+
+    setup: Any
+    cost: Any
+    """The setup's ``OptimizationObjective``."""
+    keep_alive: tuple[Any, ...]
+
+
+def _ompl_setup(
+    world: _World, scenario: Scenario | None, name: str, objective: str, a: tuple[float, float, float],
+    b: tuple[float, float, float], spacing: float, clearance_m: float,
+) -> _OmplSetup:
+    """OMPL's idiom: a 3D ``RealVectorStateSpace`` over the bounds checking motions every
+    ``spacing`` m, ``SimpleSetup`` with the validity checker (obstacles grown by
+    ``clearance_m`` plus half the spacing), the compiled motion validator (except for
+    :data:`LAST_VALID_PLANNERS`), start and goal, the objective and the planner."""
+    from ompl import base as ob
+    from ompl import geometric as og
 
     space = ob.RealVectorStateSpace(3)
     ompl_bounds = ob.RealVectorBounds(3)
@@ -833,7 +865,7 @@ def plan_path_3d(
 
     setup.setStateValidityChecker(is_valid)
     si = setup.getSpaceInformation()
-    validator = None  # kept alive while OMPL uses it
+    validator = None
     if name not in LAST_VALID_PLANNERS:
         validator = _motion_validator_type()(si, space, geom, heights)
         si.setMotionValidator(validator)
@@ -848,11 +880,22 @@ def plan_path_3d(
         cost = ob.PathLengthOptimizationObjective(si)
     setup.setOptimizationObjective(cost)
     setup.setPlanner(getattr(og, name)(si))
+    return _OmplSetup(setup, cost, (space, ompl_bounds, is_valid, si, validator, start_state, goal_state))
 
+
+def _solve_and_simplify(
+    ompl: _OmplSetup, start: tuple[float, float, float], time_limit_s: float, iterations: int | None, simplify: bool
+) -> tuple[Any, Any, float, float]:
+    """Solve within the time limit or the iteration budget, then (with ``simplify``) keep the
+    simplified path if it is usable and no worse: (OMPL's outcome, the usable path or None,
+    the solve's and the simplification's wall-clock times, s)."""
+    from ompl import geometric as og
+
+    setup, cost = ompl.setup, ompl.cost
     t0 = time.perf_counter()
     outcome = setup.solve(time_limit_s if iterations is None else _counting_condition(iterations))
     solve_time_s = time.perf_counter() - t0
-    path = _usable_path(setup, a)
+    path = _usable_path(setup, start)
     simplify_time_s = 0.0
     if path is not None and simplify:
         before = og.PathGeometric(path)
@@ -862,12 +905,20 @@ def plan_path_3d(
         else:
             setup.simplifySolution(_counting_condition(max(1, int(SIMPLIFY_ITERATION_SHARE * iterations))))
         simplify_time_s = time.perf_counter() - t0
-        after = _usable_path(setup, a)
+        after = _usable_path(setup, start)
         if after is None or cost.isCostBetterThan(before.cost(cost), after.cost(cost)):
             path = before
         else:
             path = after
+    return outcome, path, solve_time_s, simplify_time_s
 
+
+def _path_result(
+    ompl: _OmplSetup, outcome: Any, path: Any, goal: tuple[float, float, float], scenario: Scenario | None,
+    name: str, objective: str, solve_time_s: float, simplify_time_s: float, spacing: float,
+) -> PathResult:
+    """The :class:`PathResult` of a solve: the path's waypoints, length and energy, or the
+    status OMPL gave when there is no usable path."""
     if path is None:
         status = _STATUS_NAMES.get(outcome.getStatus().name, outcome.getStatus().name.lower())
         if status in ("exact", "approximate"):  # OMPL said so, but left no usable path
@@ -878,7 +929,7 @@ def plan_path_3d(
         )
 
     waypoints = np.array([[s[0], s[1], s[2]] for s in path.getStates()])
-    exact = bool(setup.haveExactSolutionPath()) and bool(np.array_equal(waypoints[-1], b))
+    exact = bool(ompl.setup.haveExactSolutionPath()) and bool(np.array_equal(waypoints[-1], goal))
     length_m = float(np.linalg.norm(np.diff(waypoints, axis=0), axis=1).sum())
     energy = path_energy_j(waypoints, scenario) if scenario is not None else None
     return PathResult(
