@@ -210,14 +210,52 @@ def _serve_legs() -> None:
     legs = _ompl_legs(Scenario.from_dict(request["scenario"]), np.array(request["sites"], dtype=float),
                       [tuple(p) for p in request["pairs"]], request["clearance_m"], request["iterations"],
                       request["planner"], request["seed"])
-    json.dump([[np.asarray(leg.waypoints_m, dtype=float).tolist(), leg.source, leg.blocked] for leg in legs], sys.stdout)
+    json.dump(
+        [[np.asarray(leg.waypoints_m, dtype=float).tolist(), leg.source, leg.blocked] for leg in legs], sys.stdout
+    )
 
 
 def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousStopSettings) -> ContinuousStops:
     """The candidate hover points of ``scenario``'s layout (``world`` its
     :func:`swiptopt.continuous.build_world`) and the legs between them (module docstring)."""
+    start = np.asarray(world.start_m, dtype=float)
+    points, valid, why, covered = _hover_points(world, scenario, settings)
+    sites = np.concatenate([start[None, :], points])
+    legs = _legs(scenario, sites, valid, settings)
+    max_step = float(world.max_step_m)
+    route_steps, routes, sources = _routes(legs, sites, valid, max_step)
+
+    model = point_model(world, points)
+    keep = valid[model.cell_of_pair()]
+    p = world.params
+    return ContinuousStops(
+        points_m=points,
+        valid=valid,
+        why_invalid=tuple(why),
+        covered=tuple(covered),
+        pair_cand=model.cell_of_pair()[keep],
+        pair_node=model.cov_node[keep],
+        pair_bits=model.bits[keep],
+        pair_joules=model.joules[keep],
+        route_steps=route_steps,
+        routes=routes,
+        sources=sources,
+        data_weight=model.data_weight,
+        energy_weight=model.energy_weight,
+        worth=node_worth(K.named(p), scenario.data_bits, scenario.storage_capacity_j),
+        capacity=np.asarray(world.capacity, dtype=float),
+        params=p,
+        nodes_norm=np.ascontiguousarray(scenario.layout.positions_m / scenario.extent_m),
+        max_step_m=max_step,
+    )
+
+
+def _hover_points(
+    world: Any, scenario: Scenario, settings: ContinuousStopSettings
+) -> tuple[np.ndarray, np.ndarray, list[str], list[np.ndarray]]:
+    """Each node's hover point (the start where there is none), whether the stop exists, why
+    not, and the nodes each hover point covers (none for a stop that does not exist)."""
     from planners.continuous import StraightLinePlanner
-    from planners.paths3d import segments_free
     from swiptopt.continuous import coverable_nodes, coverage_at
 
     n = int(world.n_nodes)
@@ -245,8 +283,18 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
             if valid[i] and valid[j] and np.array_equal(points[i], points[j]):
                 valid[i], why[i] = False, f"its hover point is stop {j}'s"
                 break
+    return points, valid, why, covered
 
-    sites = np.concatenate([start[None, :], points])
+
+def _legs(
+    scenario: Scenario, sites: np.ndarray, valid: np.ndarray, settings: ContinuousStopSettings
+) -> dict[tuple[int, int], LegPath]:
+    """The leg of every unordered pair of sites (i < j) the AUV may sit at both ends of:
+    straight, or (``legs="ompl"``) straight where that keeps the clearance and planned by
+    OMPL in a fresh process where it does not."""
+    from planners.paths3d import segments_free
+
+    n = len(valid)
     wanted: list[tuple[int, int]] = []  # unordered pairs of sites (i < j), both of which the AUV may sit at
     for i in range(n + 1):
         for j in range(i + 1, n + 1):
@@ -256,20 +304,27 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
     if settings.legs == "straight":
         for i, j in wanted:
             legs[i, j] = LegPath(np.stack([sites[i], sites[j]]), "straight (obstacles ignored)")
-    else:
-        a = np.array([sites[i] for i, _ in wanted]).reshape(-1, 3)
-        b = np.array([sites[j] for _, j in wanted]).reshape(-1, 3)
-        free = segments_free(a, b, scenario, clearance_m=settings.clearance_m)
-        blocked = [pair for pair, ok in zip(wanted, free) if not ok]
-        for pair, ok in zip(wanted, free):
-            if ok:
-                legs[pair] = LegPath(np.stack([sites[pair[0]], sites[pair[1]]]), "straight")
-        if blocked:
-            planned = _plan_in_fresh_process(scenario, sites, blocked, settings.clearance_m, settings.ompl_iterations,
-                                             settings.ompl_planner, settings.planner_seed)
-            legs.update(zip(blocked, planned))
+        return legs
+    a = np.array([sites[i] for i, _ in wanted]).reshape(-1, 3)
+    b = np.array([sites[j] for _, j in wanted]).reshape(-1, 3)
+    free = segments_free(a, b, scenario, clearance_m=settings.clearance_m)
+    blocked = [pair for pair, ok in zip(wanted, free) if not ok]
+    for pair, ok in zip(wanted, free):
+        if ok:
+            legs[pair] = LegPath(np.stack([sites[pair[0]], sites[pair[1]]]), "straight")
+    if blocked:
+        planned = _plan_in_fresh_process(scenario, sites, blocked, settings.clearance_m, settings.ompl_iterations,
+                                         settings.ompl_planner, settings.planner_seed)
+        legs.update(zip(blocked, planned))
+    return legs
 
-    max_step = float(world.max_step_m)
+
+def _routes(
+    legs: dict[tuple[int, int], LegPath], sites: np.ndarray, valid: np.ndarray, max_step: float
+) -> tuple[np.ndarray, dict[tuple[int, int], np.ndarray], dict[tuple[int, int], str]]:
+    """Each leg both ways, by (site, candidate): its kernel steps (-1: not usable), its
+    waypoints and how it was made; a candidate's own site reaches it in no steps."""
+    n = len(valid)
     route_steps = np.full((n + 1, n), -1, dtype=np.int64)
     routes: dict[tuple[int, int], np.ndarray] = {}
     sources: dict[tuple[int, int], str] = {}
@@ -284,30 +339,7 @@ def build_continuous_stops(world: Any, scenario: Scenario, settings: ContinuousS
             routes[site, cand] = path
             sources[site, cand] = leg.source
             route_steps[site, cand] = -1 if leg.blocked else leg_steps(path, max_step)
-
-    model = point_model(world, points)
-    keep = valid[model.cell_of_pair()]
-    p = world.params
-    return ContinuousStops(
-        points_m=points,
-        valid=valid,
-        why_invalid=tuple(why),
-        covered=tuple(covered),
-        pair_cand=model.cell_of_pair()[keep],
-        pair_node=model.cov_node[keep],
-        pair_bits=model.bits[keep],
-        pair_joules=model.joules[keep],
-        route_steps=route_steps,
-        routes=routes,
-        sources=sources,
-        data_weight=model.data_weight,
-        energy_weight=model.energy_weight,
-        worth=node_worth(K.named(p), scenario.data_bits, scenario.storage_capacity_j),
-        capacity=np.asarray(world.capacity, dtype=float),
-        params=p,
-        nodes_norm=np.ascontiguousarray(scenario.layout.positions_m / scenario.extent_m),
-        max_step_m=max_step,
-    )
+    return route_steps, routes, sources
 
 
 #: Stops layouts built in this process, shared by every env and adapter (the last

@@ -147,28 +147,13 @@ def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSet
     where = reachable(tables)
     model = step_model(where.tables)
     n = tables.n_nodes
-    per_pair = model.data_weight * model.bits + model.energy_weight * model.joules
-    pair_cell = model.cell_of_pair()
-    total = np.bincount(pair_cell, weights=per_pair, minlength=model.n_cells)
-    by_node = np.argsort(model.cov_node, kind="stable")
-    bounds = np.searchsorted(model.cov_node[by_node], np.arange(n + 1))
-    own = np.full(n, -1, dtype=np.int64)
-    shared = np.full(n, -1, dtype=np.int64)
-    for i in range(n):
-        pairs = by_node[bounds[i] : bounds[i + 1]]
-        if pairs.size == 0:
-            continue
-        cells, value = pair_cell[pairs], per_pair[pairs]
-        own[i] = cells[np.lexsort((cells, -total[cells], -value))[0]]
-        near = value >= settings.shared_fraction * value.max()
-        cells, value = cells[near], value[near]
-        shared[i] = cells[np.lexsort((cells, -value, -total[cells]))[0]]
+    own, shared = _best_cells(model, n, settings.shared_fraction)
     chosen = own if settings.candidates == "own" else np.concatenate([own, shared])
     nodes = np.tile(np.arange(n), settings.candidates_per_node)
 
     count = len(chosen)
     valid = chosen >= 0
-    why = ["" if v else ("no reachable cell covers node %d" % nodes[c]) for c, v in enumerate(valid)]
+    why = ["" if v else f"no reachable cell covers node {nodes[c]}" for c, v in enumerate(valid)]
     seen: dict[int, int] = {}
     for c in range(count):
         if valid[c]:
@@ -177,16 +162,7 @@ def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSet
                 valid[c] = False
                 why[c] = f"its cell is stop {first}'s"
     cells = np.where(valid, chosen, tables.start_cell)
-
-    dist_to = np.full((count, tables.n_cells), -1, dtype=np.int32)
-    via_to = np.full((count, tables.n_cells), -1, dtype=np.int8)
-    trees: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    for c in np.flatnonzero(valid):
-        cell = int(cells[c])
-        if cell not in trees:
-            dist, tree = bfs_distances(tables.next_cell, cell)
-            trees[cell] = (dist, tree[0])
-        dist_to[c], via_to[c] = trees[cell]
+    dist_to, via_to = _paths_to(tables, cells, valid)
 
     pair_cand, pair_index = [], []
     for c in np.flatnonzero(valid):
@@ -214,6 +190,45 @@ def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSet
         cells_norm=np.ascontiguousarray(scenario.cell_centers_m / scenario.extent_m),
         nodes_norm=np.ascontiguousarray(scenario.layout.positions_m / scenario.extent_m),
     )
+
+
+def _best_cells(model: Any, n: int, shared_fraction: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) each node's own stop cell and (n,) its shared stop cell (-1: none), as
+    :func:`build_grid_stops` chooses them."""
+    per_pair = model.data_weight * model.bits + model.energy_weight * model.joules
+    pair_cell = model.cell_of_pair()
+    total = np.bincount(pair_cell, weights=per_pair, minlength=model.n_cells)
+    by_node = np.argsort(model.cov_node, kind="stable")
+    bounds = np.searchsorted(model.cov_node[by_node], np.arange(n + 1))
+    own = np.full(n, -1, dtype=np.int64)
+    shared = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        pairs = by_node[bounds[i] : bounds[i + 1]]
+        if pairs.size == 0:
+            continue
+        cells, value = pair_cell[pairs], per_pair[pairs]
+        own[i] = cells[np.lexsort((cells, -total[cells], -value))[0]]
+        near = value >= shared_fraction * value.max()
+        cells, value = cells[near], value[near]
+        shared[i] = cells[np.lexsort((cells, -value, -total[cells]))[0]]
+    return own, shared
+
+
+def _paths_to(tables: K.Tables, cells: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(C, n_cells) moves between each valid candidate's cell and every cell (-1: no way),
+    and (C, n_cells) the move into each cell on the BFS tree grown from the candidate's cell
+    (which :class:`GridMove` walks backwards)."""
+    count = len(cells)
+    dist_to = np.full((count, tables.n_cells), -1, dtype=np.int32)
+    via_to = np.full((count, tables.n_cells), -1, dtype=np.int8)
+    trees: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for c in np.flatnonzero(valid):
+        cell = int(cells[c])
+        if cell not in trees:
+            dist, tree = bfs_distances(tables.next_cell, cell)
+            trees[cell] = (dist, tree[0])
+        dist_to[c], via_to[c] = trees[cell]
+    return dist_to, via_to
 
 
 class GridMove:
