@@ -103,7 +103,9 @@ def _regime(tables: K.Tables) -> str:
     if channel == 0 or (channel == 1 and p.shadowing_sigma_db == 0.0):
         return NO_FADING
     if p.link != K.LINK_CODES["downlink_split"]:
-        raise ConfigError("adaptive_optimum with fading needs link = 'downlink_split': uplink packets vary with the gain", "link")
+        raise ConfigError(
+            "adaptive_optimum with fading needs link = 'downlink_split': uplink packets vary with the gain", "link"
+        )
     if p.gate_j > 0 or p.drain_j > 0:
         raise ConfigError(
             "adaptive_optimum with fading needs energy_gate_j = 0 and idle_drain_w = 0: the charge, which "
@@ -291,7 +293,8 @@ def adaptive_optimum(
             layer_edges[key] = per_action
             if stepper.steps > max_kernel_steps:
                 raise ConfigError(
-                    f"adaptive_optimum needs more than max_kernel_steps = {max_kernel_steps} kernel steps", "max_kernel_steps"
+                    f"adaptive_optimum needs more than max_kernel_steps = {max_kernel_steps} kernel steps",
+                    "max_kernel_steps",
                 )
         edges.append(layer_edges)
         layers.append(nxt)
@@ -303,7 +306,10 @@ def adaptive_optimum(
         later = value
         value = {}
         for key, per_action in edges[step].items():
-            totals = [sum(prob * (reward + (later[k] if k is not None else 0.0)) for prob, reward, k in out) for out in per_action]
+            totals = [
+                sum(prob * (reward + (later[k] if k is not None else 0.0)) for prob, reward, k in out)
+                for out in per_action
+            ]
             best = int(np.argmax(totals))
             value[key] = totals[best]
             policy[(step, key)] = best

@@ -119,7 +119,8 @@ def upper_bound(scenario: Scenario, tables: K.Tables | None = None) -> UpperBoun
         else:
             bits = dt * shannon_rate_bps(p.bandwidth_hz, p.split_ratio * t.cov_snr)
         joules = dt * harvest_from_input_array_w(
-            (1 - p.split_ratio) * t.cov_pav, p.logistic == 1.0, p.efficiency, p.logistic_max_w, p.logistic_a_per_w, p.logistic_b_w
+            (1 - p.split_ratio) * t.cov_pav, p.logistic == 1.0, p.efficiency, p.logistic_max_w, p.logistic_a_per_w,
+            p.logistic_b_w,
         )
         cell_of_pair = np.repeat(np.arange(t.n_cells), np.diff(t.cov_ptr))
         per_cell_bits = np.bincount(cell_of_pair, weights=bits, minlength=t.n_cells)

@@ -145,7 +145,8 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
             else:
                 centres = scenario.cell_centers_m[nodes]
                 costs = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=-1)
-            order = solve_tsp(costs, start=0, closed=False, time_limit_s=self.tsp_time_limit_s, method=self.tsp_method).order
+            tour = solve_tsp(costs, start=0, closed=False, time_limit_s=self.tsp_time_limit_s, method=self.tsp_method)
+            order = tour.order
         return [nodes[i] for i in order[1:] if walks.distances(nodes[i])[tables.start_cell] >= 0]
 
     def _prune(self, scenario: Any, walks: Walks, order: list[int]) -> list[int]:
@@ -227,11 +228,10 @@ def _greedy_extra(model: StepModel, path: list[int], order: list[int], extra_ste
         gains = []
         for k, (lo, hi) in enumerate(spans):
             nodes = model.cov_node[lo:hi]
-            gain = model.data_weight * float(
-                (np.minimum(model.data_bits[nodes], bits[nodes] + model.bits[lo:hi]) - np.minimum(model.data_bits[nodes], bits[nodes])).sum()
-            ) + model.energy_weight * float(
-                (np.minimum(model.room_j[nodes], joules[nodes] + model.joules[lo:hi]) - np.minimum(model.room_j[nodes], joules[nodes])).sum()
-            )
+            data_cap, room = model.data_bits[nodes], model.room_j[nodes]
+            more_bits = np.minimum(data_cap, bits[nodes] + model.bits[lo:hi]) - np.minimum(data_cap, bits[nodes])
+            more_joules = np.minimum(room, joules[nodes] + model.joules[lo:hi]) - np.minimum(room, joules[nodes])
+            gain = model.data_weight * float(more_bits.sum()) + model.energy_weight * float(more_joules.sum())
             gains.append(gain - model.stay_cost[order[k]])
         k = int(np.argmax(gains))
         lo, hi = spans[k]

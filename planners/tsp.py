@@ -309,7 +309,9 @@ def _validated_matrix(distance_matrix: ArrayLike) -> np.ndarray:
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"distance_matrix must be an (n, n) array of numbers: {exc}", "distance_matrix") from exc
     if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1] or matrix.shape[0] == 0:
-        raise ConfigError(f"distance_matrix must be square (n, n) with n >= 1, got shape {matrix.shape}", "distance_matrix")
+        raise ConfigError(
+            f"distance_matrix must be square (n, n) with n >= 1, got shape {matrix.shape}", "distance_matrix"
+        )
     if not np.isfinite(matrix).all():
         raise ConfigError("distance_matrix must be finite (no NaN or inf entries)", "distance_matrix")
     if (matrix < 0).any():

@@ -151,7 +151,9 @@ def polish_walk(
     return list(actions)
 
 
-def _climb(walks: Walks, stops: list[tuple[int, int]], candidates: list[int], max_evaluations: int) -> list[tuple[int, int]]:
+def _climb(
+    walks: Walks, stops: list[tuple[int, int]], candidates: list[int], max_evaluations: int
+) -> list[tuple[int, int]]:
     """First-improvement hill climbing from ``stops`` until no neighbour is better."""
     current = walks.value(walks.actions(stops))
     improved = True

@@ -270,7 +270,9 @@ class TourPlanner:
         self._pair_cache[key] = leg
         return leg
 
-    def _plan_for(self, world: Any, scenario: Any, k: int, points: np.ndarray, groups: list[np.ndarray]) -> ContinuousPlan:
+    def _plan_for(
+        self, world: Any, scenario: Any, k: int, points: np.ndarray, groups: list[np.ndarray]
+    ) -> ContinuousPlan:
         from planners.paths3d import path_energy_j
         from planners.tsp import solve_tsp
 
