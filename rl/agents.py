@@ -243,7 +243,8 @@ class _TabularAgent:
         try:
             agent.rng_.bit_generator.state = state
         except (TypeError, ValueError, KeyError) as exc:
-            raise _BadAgentFile(f"rng_state is not a state of {type(agent.rng_.bit_generator).__name__}: {_first_line(exc)}") from None
+            generator = type(agent.rng_.bit_generator).__name__
+            raise _BadAgentFile(f"rng_state is not a state of {generator}: {_first_line(exc)}") from None
         return agent
 
 
@@ -263,7 +264,9 @@ def _first_line(exc: BaseException) -> str:
 def _scalar(arrays: dict[str, np.ndarray], name: str, kind: type) -> Any:
     value = arrays[name]
     if value.shape != () or not np.issubdtype(value.dtype, kind):
-        raise _BadAgentFile(f"{name} must be a single {kind.__name__.strip('_')}, got shape {value.shape} {value.dtype}")
+        raise _BadAgentFile(
+            f"{name} must be a single {kind.__name__.strip('_')}, got shape {value.shape} {value.dtype}"
+        )
     return value[()]
 
 

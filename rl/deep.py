@@ -587,7 +587,9 @@ def _new_model(config: DeepConfig, env: Any, scenario: Scenario | None) -> Any:
     except (TypeError, ValueError, AssertionError, RuntimeError, UnboundLocalError) as exc:
         if "action spaces" in str(exc) or "action space" in str(exc).lower() and "support" in str(exc).lower():
             whose = f"the {config.world} world's actions" if scenario is not None else "the environment's actions"
-            raise ConfigError(f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world") from None
+            raise ConfigError(
+                f"{config.algorithm} cannot act on {env.action_space} ({whose}): {exc}", "world"
+            ) from None
         field_name = _blame(exc)
         raise ConfigError(f"{config.algorithm} rejected its {field_name}: {type(exc).__name__}: {_short(exc)}",
                           field_name) from None

@@ -193,7 +193,9 @@ _COMPILED: dict[str, Callable] = {}
 def compiled_train_loop() -> Callable:
     """:func:`train_loop` compiled with numba against the compiled kernel and agent rules."""
     if not _COMPILED:
-        helpers = {name: K.compiled(name) for name in ("reset_state", "needs_refill", "tabular_observation", "step_tabular")}
+        helpers = {
+            name: K.compiled(name) for name in ("reset_state", "needs_refill", "tabular_observation", "step_tabular")
+        }
         helpers.update(
             K.compile_family(
                 {
@@ -205,7 +207,9 @@ def compiled_train_loop() -> Callable:
             )
         )
         _COMPILED.update(
-            K.compile_family({"refill_draws": refill_draws, "choose_action": choose_action, "train_loop": train_loop}, helpers)
+            K.compile_family(
+                {"refill_draws": refill_draws, "choose_action": choose_action, "train_loop": train_loop}, helpers
+            )
         )
     return _COMPILED["train_loop"]
 
@@ -226,7 +230,9 @@ def _train_compiled(agent: Any, env: Any, episodes: int, seed: int | None, log: 
         raise ConfigError("the compiled backend needs a swiptopt env with observation='tabular'", "backend")
     if getattr(base, "layout_seeds", None) is not None:
         # the compiled loop runs every episode on the tables of its first reset
-        raise ConfigError("the compiled backend trains on one layout: use backend='python' with layout_seeds", "backend")
+        raise ConfigError(
+            "the compiled backend trains on one layout: use backend='python' with layout_seeds", "backend"
+        )
     if isinstance(agent, RandomAgent):
         kind, q, cfg = 0, np.zeros((1, agent.n_actions)), None
     elif isinstance(agent, _TabularAgent):

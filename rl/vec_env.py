@@ -58,6 +58,42 @@ def _split_infos(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
     return out
 
 
+def _check_wrappable(venv: Any) -> None:
+    """Refuse what :class:`Sb3VectorEnv` cannot wrap: anything but an
+    :class:`~swiptopt.vector.AuvSwiptVectorEnv` whose ``autoreset_mode`` is ``SAME_STEP``."""
+    from gymnasium.vector import AutoresetMode
+
+    if not isinstance(venv, AuvSwiptVectorEnv):
+        raise ConfigError(f"Sb3VectorEnv wraps an AuvSwiptVectorEnv, got {type(venv).__name__}", "venv")
+    if venv.autoreset_mode is not AutoresetMode.SAME_STEP:
+        raise ConfigError(
+            f"Sb3VectorEnv needs autoreset_mode=SAME_STEP (SB3 resets in the step that ends an episode), "
+            f"got {venv.autoreset_mode}",
+            "autoreset_mode",
+        )
+
+
+def _step_infos(
+    infos: dict[str, Any], terminated: np.ndarray, truncated: np.ndarray, reset_infos: list[dict[str, Any]], n: int
+) -> tuple[np.ndarray, list[dict[str, Any]]]:
+    """SB3's dones and one info dict per copy from a ``SAME_STEP`` vector step's infos, as
+    DummyVecEnv gives them: an ended copy's info is its final step's (with
+    ``terminal_observation``), and its reset's info goes to ``reset_infos``; ``n`` copies."""
+    dones = terminated | truncated
+    out = _split_infos(infos, n)  # the step's infos; for ended copies, their reset's
+    ended = np.flatnonzero(dones).tolist()
+    if ended:
+        final = _split_infos(infos["final_info"], n)
+        for i in ended:
+            reset_infos[i], out[i] = out[i], final[i]
+    limited = (truncated & ~terminated).tolist()
+    for i in range(n):
+        out[i]["TimeLimit.truncated"] = limited[i]
+    for i in ended:
+        out[i]["terminal_observation"] = infos["final_obs"][i]
+    return dones, out
+
+
 def make_sb3_vec_env(num_envs: int, world: str = GRID, scenario: Any = None, **kwargs: Any) -> Any:
     """An :class:`Sb3VectorEnv` over a new ``AuvSwiptVectorEnv(num_envs, world, scenario,
     autoreset_mode=SAME_STEP, **kwargs)`` (``preset``, ``observation``, ``layout_seeds``,
@@ -74,7 +110,6 @@ def make_sb3_vec_env(num_envs: int, world: str = GRID, scenario: Any = None, **k
 @functools.lru_cache(maxsize=1)
 def _sb3_vector_env_class() -> type:
     """Build :class:`Sb3VectorEnv` (this imports Stable-Baselines3)."""
-    from gymnasium.vector import AutoresetMode
     from stable_baselines3.common import env_util
     from stable_baselines3.common.vec_env import VecEnv
 
@@ -84,14 +119,7 @@ def _sb3_vector_env_class() -> type:
         module docstring."""
 
         def __init__(self, venv: AuvSwiptVectorEnv):
-            if not isinstance(venv, AuvSwiptVectorEnv):
-                raise ConfigError(f"Sb3VectorEnv wraps an AuvSwiptVectorEnv, got {type(venv).__name__}", "venv")
-            if venv.autoreset_mode is not AutoresetMode.SAME_STEP:
-                raise ConfigError(
-                    f"Sb3VectorEnv needs autoreset_mode=SAME_STEP (SB3 resets in the step that ends an episode), "
-                    f"got {venv.autoreset_mode}",
-                    "autoreset_mode",
-                )
+            _check_wrappable(venv)
             self.venv = venv
             self.envs = venv.envs
             super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
@@ -109,19 +137,7 @@ def _sb3_vector_env_class() -> type:
 
         def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
             obs, rewards, terminated, truncated, infos = self.venv.step(self._actions)
-            n = self.num_envs
-            dones = terminated | truncated
-            out = _split_infos(infos, n)  # the step's infos; for ended copies, their reset's
-            ended = np.flatnonzero(dones).tolist()
-            if ended:
-                final = _split_infos(infos["final_info"], n)
-                for i in ended:
-                    self.reset_infos[i], out[i] = out[i], final[i]
-            limited = (truncated & ~terminated).tolist()
-            for i in range(n):
-                out[i]["TimeLimit.truncated"] = limited[i]
-            for i in ended:
-                out[i]["terminal_observation"] = infos["final_obs"][i]
+            dones, out = _step_infos(infos, terminated, truncated, self.reset_infos, self.num_envs)
             return obs, rewards.astype(np.float32), dones, out
 
         def close(self) -> None:
@@ -134,7 +150,9 @@ def _sb3_vector_env_class() -> type:
             for i in self._get_indices(indices):
                 setattr(self.envs[i], attr_name, value)
 
-        def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
+        def env_method(
+            self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any
+        ) -> list[Any]:
             return [
                 self.envs[i].get_wrapper_attr(method_name)(*method_args, **method_kwargs)
                 for i in self._get_indices(indices)
@@ -158,4 +176,6 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["Sb3VectorEnv", "make_sb3_vec_env"]
+# Sb3VectorEnv is built on first use (so that Stable-Baselines3 loads only then) and reached
+# through the module's __getattr__, which pyflakes cannot see
+__all__ = ["Sb3VectorEnv", "make_sb3_vec_env"]  # noqa: F822
