@@ -172,7 +172,9 @@ def build_world(scenario: Scenario) -> World:
     w[Q_SENSITIVITY] = scenario.sensitivity_db
     w[Q_LOAD] = scenario.load_ohm
     w[Q_ELEMENTS] = float(scenario.n_elements)
-    boxes = np.array([[*o.min_m, *o.max_m] for o in scenario.obstacles if isinstance(o, Box)], dtype=float).reshape(-1, 6)
+    boxes = np.array(
+        [[*o.min_m, *o.max_m] for o in scenario.obstacles if isinstance(o, Box)], dtype=float
+    ).reshape(-1, 6)
     spheres = np.array(
         [[*o.center_m, o.radius_m] for o in scenario.obstacles if isinstance(o, Sphere)], dtype=float
     ).reshape(-1, 4)
@@ -197,7 +199,8 @@ def _layout_fields(scenario: Scenario, params: np.ndarray) -> dict:
     params = params.copy()
     coverable = coverable_nodes(scenario)
     params[K.P_DATA_TARGET] = scenario.target_fraction * layout.data_bits[coverable].sum()
-    params[K.P_ENERGY_TARGET] = scenario.target_fraction * (layout.capacity_j - layout.initial_energy_j)[coverable].sum()
+    storable_j = layout.capacity_j - layout.initial_energy_j
+    params[K.P_ENERGY_TARGET] = scenario.target_fraction * storable_j[coverable].sum()
     params[K.P_DRAW_UNIFORMS] = float(np.any(layout.failure_prob > 0))
     return {
         "nodes_m": np.ascontiguousarray(layout.positions_m, dtype=float),
@@ -303,7 +306,11 @@ def _seabed_depth(world, seabed, x, y):  # type: ignore[no-untyped-def]
     return world[Q_EXT_Z] - height
 
 
-def first_contact(world, boxes, spheres, seabed, p, d):  # type: ignore[no-untyped-def]
+# One function, not four: the continuous step's contact test, compiled with the step (_FUNCTIONS)
+# and inlined into it, whose four tests narrow one ``hit`` in order (the seabed is sampled only
+# up to the contact found so far); it reads best as one pass, and the continuous trace's
+# reference digest (tests/swiptopt/test_cpu_paths.py) holds its operations as they are.
+def first_contact(world, boxes, spheres, seabed, p, d):  # type: ignore[no-untyped-def]  # noqa: C901
     """The fraction t in [0, 1] of the move p -> p + d at which it first touches the
     volume's boundary, a box, a sphere or the seabed (1.0: it touches nothing on the way;
     0.0: it cannot start)."""

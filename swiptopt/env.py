@@ -444,13 +444,15 @@ class AuvSwiptEnv(LayoutEnv):
         m = self.episode_metrics()
         cell = tuple(int(v) for v in s.cell_of_index(self.state.cell))
         covered = self.tables.covered(self.state.cell)
+        position = tuple(np.round(s.cell_centers_m[self.state.cell], 1))
         lines = [
-            f"t={self.state.t}/{s.episode_steps}  cell={cell}  position={tuple(np.round(s.cell_centers_m[self.state.cell], 1))} m",
+            f"t={self.state.t}/{s.episode_steps}  cell={cell}  position={position} m",
             f"covered nodes: {list(map(int, covered)) or 'none'}",
             f"data collected {m['data_bits'] / 1e3:.1f} kbit of {self.tables.data0.sum() / 1e3:.1f} kbit; "
             f"energy delivered {m['energy_delivered_j'] * 1e3:.1f} mJ; nodes served {m['nodes_served']}/{s.n_nodes}",
             f"AUV energy {m['auv_energy_j'] / 1e3:.2f} kJ (propulsion {m['auv_propulsion_j'] / 1e3:.2f}, "
-            f"hotel {m['auv_hotel_j'] / 1e3:.2f}, projector {m['auv_projector_j'] / 1e3:.2f}); return {m['return']:.3f}",
+            f"hotel {m['auv_hotel_j'] / 1e3:.2f}, projector {m['auv_projector_j'] / 1e3:.2f}); "
+            f"return {m['return']:.3f}",
         ]
         return "\n".join(lines) + "\n"
 
@@ -460,7 +462,9 @@ class AuvSwiptEnv(LayoutEnv):
 
         s, t, st = self.scenario, self.tables, self.state
         nodes = s.layout.positions_m
-        served = np.array([K.is_served(st.data_left, st.energy, t.capacity, t.named.reward_weight, i) for i in range(t.n_nodes)])
+        served = np.array(
+            [K.is_served(st.data_left, st.energy, t.capacity, t.named.reward_weight, i) for i in range(t.n_nodes)]
+        )
         covered = np.zeros(t.n_nodes, dtype=bool)
         covered[t.covered(st.cell)] = True
         path = s.cell_centers_m[np.asarray(self.path, dtype=np.int64)]

@@ -192,7 +192,8 @@ def build_tables(scenario: Scenario) -> Tables:
     cells = scenario.cell_of_index(np.arange(n_cells))  # (n_cells, 3)
     targets = cells[:, None, :] + ACTION_DELTAS[None, :, :]  # (n_cells, 7, 3)
     inside = np.all((targets >= 0) & (targets < np.asarray(shape)), axis=-1)
-    target_index = np.where(inside, np.ravel_multi_index(tuple(np.clip(targets, 0, np.asarray(shape) - 1).transpose(2, 0, 1)), shape), 0)
+    clipped = np.clip(targets, 0, np.asarray(shape) - 1)
+    target_index = np.where(inside, np.ravel_multi_index(tuple(clipped.transpose(2, 0, 1)), shape), 0)
     free = inside & ~scenario.blocked_cells[target_index]
     next_cell = np.where(free, target_index, np.arange(n_cells)[:, None]).astype(np.int64)
     moved = next_cell != np.arange(n_cells)[:, None]
@@ -356,7 +357,8 @@ class EpisodeState:
         return int(self.where[1])
 
     def copy(self) -> EpisodeState:
-        return EpisodeState(*(np.copy(getattr(self, f)) for f in ("where", "data_left", "energy", "delivered", "collected", "acc", "parts")))
+        fields = ("where", "data_left", "energy", "delivered", "collected", "acc", "parts")
+        return EpisodeState(*(np.copy(getattr(self, f)) for f in fields))
 
 
 def new_state(tables: Tables) -> EpisodeState:
@@ -578,7 +580,13 @@ def step(action, uniforms, normals, arrays):  # type: ignore[no-untyped-def]
     )
 
 
-def serve(  # type: ignore[no-untyped-def]
+# One function on purpose, over its complexity and length limits: the rest of the step, which
+# numba compiles with the step (_KERNEL_FUNCTIONS) and which the Python reference runs from the
+# same source. One pass over the covered pairs applies the model's rules in their order
+# (fading, decoding, harvesting, the uplink, drain, reward, the episode's end); helpers would
+# scatter that order, which the kernel traces' reference digests (tests/swiptopt/test_cpu_paths.py)
+# hold to the last bit, across the grid and the continuous worlds that both end here.
+def serve(  # type: ignore[no-untyped-def]  # noqa: C901
     propulsion_j, start, stop, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
     where, data_left, energy, delivered, collected, acc, parts,
 ):

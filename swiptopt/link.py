@@ -222,7 +222,9 @@ def auv_power(scenario: Scenario) -> AuvPower:
         propulsion_w=p_prop,
         hotel_w=scenario.hotel_power_w,
         projector_w=scenario.electrical_power_w,
-        move_energy_j=float(auv.move_energy_j(scenario.cell_size_m, scenario.speed_mps, p_prop, scenario.hotel_power_w)),
+        move_energy_j=float(
+            auv.move_energy_j(scenario.cell_size_m, scenario.speed_mps, p_prop, scenario.hotel_power_w)
+        ),
         hover_energy_j=float(auv.hover_energy_j(dt, scenario.hotel_power_w, scenario.station_keeping_power_w)),
         projector_energy_j=scenario.electrical_power_w * dt,
     )

@@ -26,7 +26,9 @@ def draw_world(scenario: Scenario, top: Any, side: Any, paths: Mapping[str, np.n
         for obstacle in scenario.obstacles:
             if isinstance(obstacle, Box):
                 lo, hi = obstacle.min_m, obstacle.max_m
-                ax.add_patch(Rectangle((lo[0], lo[j]), hi[0] - lo[0], hi[j] - lo[j], color="0.6", alpha=alpha, zorder=1))
+                ax.add_patch(
+                    Rectangle((lo[0], lo[j]), hi[0] - lo[0], hi[j] - lo[j], color="0.6", alpha=alpha, zorder=1)
+                )
             elif isinstance(obstacle, Sphere):
                 c = obstacle.center_m
                 ax.add_patch(Circle((c[0], c[j]), obstacle.radius_m, color="0.6", alpha=alpha, zorder=1))

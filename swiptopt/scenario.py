@@ -168,7 +168,9 @@ class Scenario:
 
     # nodes
     n_nodes: int = _field(25, "", "number of sensor nodes", lo=1, hi=10_000, kind="int")
-    layout_seed: int = _field(0, "", "seed of node positions, charges and failure rates", lo=0, hi=2**63 - 1, kind="int")
+    layout_seed: int = _field(
+        0, "", "seed of node positions, charges and failure rates", lo=0, hi=2**63 - 1, kind="int"
+    )
     node_positions_m: tuple[tuple[float, float, float], ...] | None = _field(
         None, "m", "explicit node positions (x, y, depth); default uniform in the volume", kind="positions",
         optional=True,
@@ -205,9 +207,15 @@ class Scenario:
         TABLE1_NODE_POWER_W, "W", "node transmitter electrical power P_i (uplink; default: 170 dB re 1 uPa @ 1 m)",
         lo=0, lo_open=True, hi=1e5,
     )
-    node_electroacoustic_efficiency: float = _field(0.5, "", "node transmitter efficiency (uplink)", lo=0, lo_open=True, hi=1)
-    node_circuit_power_w: float = _field(0.1, "W", "node circuit power while transmitting (uplink; Table I P_C)", lo=0, hi=1e4)
-    packet_bits: float = _field(800.0, "bit", "uplink packet size: data moves in whole packets (Table I: 100 bytes)", lo=1, hi=1e9)
+    node_electroacoustic_efficiency: float = _field(
+        0.5, "", "node transmitter efficiency (uplink)", lo=0, lo_open=True, hi=1
+    )
+    node_circuit_power_w: float = _field(
+        0.1, "W", "node circuit power while transmitting (uplink; Table I P_C)", lo=0, hi=1e4
+    )
+    packet_bits: float = _field(
+        800.0, "bit", "uplink packet size: data moves in whole packets (Table I: 100 bytes)", lo=1, hi=1e9
+    )
 
     # SWIPT at the node (Section II-C)
     sensitivity_db: float = _field(-170.0, "dB re 1 V/uPa", "hydrophone receive sensitivity", lo=-300, hi=0)
@@ -220,11 +228,15 @@ class Scenario:
     logistic_b_w: float = _field(0.014, "W", "logistic harvester turning point b", lo=0, hi=1e6)
 
     # coverage cone
-    cone_half_angle_deg: float = _field(30.0, "deg", "half-angle of the downward coverage cone", lo=0, lo_open=True, hi=90, hi_open=True)
+    cone_half_angle_deg: float = _field(
+        30.0, "deg", "half-angle of the downward coverage cone", lo=0, lo_open=True, hi=90, hi_open=True
+    )
     cone_range_m: float = _field(100.0, "m", "slant range limit of the cone", lo=0, lo_open=True, hi=1e6)
 
     # AUV (Section II-D)
-    start_cell: tuple[int, int, int] | None = _field(None, "cell", "AUV start (i, j, k); default the surface cell at the centre", kind="cell", optional=True)
+    start_cell: tuple[int, int, int] | None = _field(
+        None, "cell", "AUV start (i, j, k); default the surface cell at the centre", kind="cell", optional=True
+    )
     speed_mps: float = _field(1.5, "m/s", "AUV cruise speed through the water", lo=0, lo_open=True, hi=20)
     drag_coefficient: float = _field(0.3, "", "drag coefficient C_D", lo=0, lo_open=True, hi=10)
     frontal_area_m2: float = _field(0.028, "m^2", "frontal area A", lo=0, lo_open=True, hi=100)
@@ -233,18 +245,32 @@ class Scenario:
     hotel_power_w: float = _field(15.0, "W", "hotel load H", lo=0, hi=1e5)
     station_keeping_power_w: float = _field(0.0, "W", "extra power to hold station", lo=0, hi=1e5)
     battery_j: float = _field(3.6e6, "J", "AUV battery energy (1 kWh)", lo=0, lo_open=True, hi=1e12)
-    current_mps: tuple[float, float, float] = _field((0.0, 0.0, 0.0), "m/s", "ocean current at the surface (x, y, z)", kind="vector3")
-    current_bottom_mps: tuple[float, float, float] | None = _field(None, "m/s", "current at the bottom; linear in depth between (default: uniform)", kind="vector3", optional=True)
+    current_mps: tuple[float, float, float] = _field(
+        (0.0, 0.0, 0.0), "m/s", "ocean current at the surface (x, y, z)", kind="vector3"
+    )
+    current_bottom_mps: tuple[float, float, float] | None = _field(
+        None, "m/s", "current at the bottom; linear in depth between (default: uniform)", kind="vector3",
+        optional=True,
+    )
 
     # MDP (Section III)
     episode_steps: int = _field(50, "steps", "episode length", lo=1, hi=1_000_000, kind="int")
     reward_weight: float = _field(0.5, "", "Gamma: weight of data against energy in the reward", lo=0, hi=1)
     split_ratio: float = _field(0.5, "", "alpha: share of the signal sent to information decoding", lo=0, hi=1)
     movement_weight: float = _field(0.02, "", "lambda: weight of the AUV energy penalty", lo=0, hi=1e3)
-    data_ref_bits: float | None = _field(None, "bit", "reward data reference (default data_bits)", lo=0, lo_open=True, hi=1e15, optional=True)
-    energy_ref_j: float | None = _field(None, "J", "reward energy reference (default: one step at 10 m on axis)", lo=0, lo_open=True, hi=1e12, optional=True)
-    move_energy_ref_j: float | None = _field(None, "J", "reward move reference (default: one horizontal move)", lo=0, lo_open=True, hi=1e12, optional=True)
-    target_fraction: float = _field(0.5, "", "fraction of collectable data/energy for the steps-to-target metrics", lo=0, lo_open=True, hi=1)
+    data_ref_bits: float | None = _field(
+        None, "bit", "reward data reference (default data_bits)", lo=0, lo_open=True, hi=1e15, optional=True
+    )
+    energy_ref_j: float | None = _field(
+        None, "J", "reward energy reference (default: one step at 10 m on axis)", lo=0, lo_open=True, hi=1e12,
+        optional=True,
+    )
+    move_energy_ref_j: float | None = _field(
+        None, "J", "reward move reference (default: one horizontal move)", lo=0, lo_open=True, hi=1e12, optional=True
+    )
+    target_fraction: float = _field(
+        0.5, "", "fraction of collectable data/energy for the steps-to-target metrics", lo=0, lo_open=True, hi=1
+    )
     channel: str = _field("shadowing", "", "stochastic channel", kind="str", choices=CHANNELS)
     shadowing_sigma_db: float = _field(3.0, "dB", "log-normal shadowing standard deviation", lo=0, hi=30)
     rician_k: float = _field(10.0, "", "Rician K factor (linear)", lo=0, hi=1e6)
@@ -565,7 +591,10 @@ def _check_field(name: str, value: Any, spec: Spec) -> Any:
         # len(), not truth: a numpy array has no single truth value
         if not isinstance(value, (list, tuple, np.ndarray)) or len(value) == 0:
             raise ScenarioError(f"{name} must be a 2-D list of heights", name)
-        rows = tuple(tuple(_number(name, v) for v in row) if isinstance(row, (list, tuple, np.ndarray)) else None for row in value)
+        rows = tuple(
+            tuple(_number(name, v) for v in row) if isinstance(row, (list, tuple, np.ndarray)) else None
+            for row in value
+        )
         if any(r is None for r in rows) or len({len(r) for r in rows}) != 1:  # type: ignore[arg-type]
             raise ScenarioError(f"{name} must be a rectangular 2-D list of heights", name)
         return rows

@@ -96,7 +96,10 @@ def check_value(
         if not isinstance(value, str):
             raise error(f"{name} = {value!r} must be {spec.allowed()}", field)
         if spec.choices and value not in spec.choices:
-            raise error(f"{name} = {value!r}{did_you_mean(value, spec.choices)} is not allowed: must be {spec.allowed()}", field)
+            raise error(
+                f"{name} = {value!r}{did_you_mean(value, spec.choices)} is not allowed: must be {spec.allowed()}",
+                field,
+            )
         return value
     if kind == "bool":
         if not isinstance(value, (bool, np.bool_)):

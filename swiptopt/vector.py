@@ -434,7 +434,9 @@ class AuvSwiptVectorEnv(VectorEnv):
             )
         check_value("backend", backend, ARGUMENTS["backend"])
         if render_mode is not None:
-            raise ConfigError(f"render_mode = {render_mode!r}: the vector env does not render (use None)", "render_mode")
+            raise ConfigError(
+                f"render_mode = {render_mode!r}: the vector env does not render (use None)", "render_mode"
+            )
         if "max_episode_steps" in overrides:
             raise ConfigError(
                 "max_episode_steps: the copies truncate at the scenario's episode_steps; set episode_steps instead",
@@ -696,8 +698,9 @@ def continuous_vector_env(num_envs: int = 1, **kwargs: Any) -> AuvSwiptVectorEnv
     """:class:`AuvSwiptVectorEnv` of the continuous world: the ``vector_entry_point`` of
     ``swiptopt/AuvSwiptContinuous-v0``."""
     if "world" in kwargs:
-        raise ConfigError("world: swiptopt/AuvSwiptContinuous-v0 is the continuous world; make the other id for another",
-                          "world")
+        raise ConfigError(
+            "world: swiptopt/AuvSwiptContinuous-v0 is the continuous world; make the other id for another", "world"
+        )
     return AuvSwiptVectorEnv(num_envs, CONTINUOUS, **kwargs)
 
 
