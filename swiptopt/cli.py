@@ -179,6 +179,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
         TimeRemainingColumn,
     )
 
+    from swiptopt.benchmark import tables
     from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
@@ -188,7 +189,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     check_output_file(output, "--output")
     check_run_options(workers, scheduler)
     console = Console(stderr=True)
-    texts, failures = [], []
+    texts, failures, reports = [], [], []
     with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
         for experiment in experiments:  # the models directory, for every experiment, before any runs
             check_models_for(experiment, store, _pretrained(retrain))
@@ -209,9 +210,10 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
                 f"{report.seconds:.1f} s -> {store.path}"
             )
-            texts.append(_print_table(experiment, store, fmt, caption=caption))
+            reports.append(tables.report(experiment, store))
+            texts.append(_print_report(reports[-1], fmt, caption=caption))
             failures += report.failures
-        texts += _print_curves(experiments, store, fmt)
+        texts += _print_curves(reports, fmt)
     if output:
         _write_output(output, "\n".join(texts))
     _report_failures(console, failures)
@@ -219,38 +221,23 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
         raise click.exceptions.Exit(EXIT_TASKS_FAILED)
 
 
-def _print_curves(experiments, store, fmt) -> list[str]:  # type: ignore[no-untyped-def]
-    """The learning curves of the experiments with budgets, as one table (Markdown in the
+def _print_curves(reports, fmt) -> list[str]:  # type: ignore[no-untyped-def]
+    """The learning curves of the reports with budgets, as one table (Markdown in the
     terminal and Markdown formats); returns its text for --output (none without budgets)."""
     from swiptopt.benchmark import tables
 
-    rows = [row for experiment in experiments for row in tables.curve_rows(experiment, store)]
+    rows = [row for r in reports for row in r.curves]
     if not rows or fmt in ("csv", "latex"):
         return []
-    text = "**learning curves: return at each budget, flat at the end, last budget / best planner**\n\n"
-    text += tables.curves_to_markdown(rows)
+    text = tables.render_curves(rows)
     click.echo("")
     click.echo(text, nl=False)
     return [text]
 
 
-def _missing_note(experiment, store, missing: int) -> str:  # type: ignore[no-untyped-def]
-    """The title's note on the experiment's tasks without a result: ``k tasks failed:
-    reason; m tasks missing``."""
-    failed = store.failures({t.key for t in experiment.tasks()})
-    parts = []
-    if failed:
-        reasons = Counter(failed.values()).most_common()
-        others = f" (and {len(reasons) - 1} other reasons)" if len(reasons) > 1 else ""
-        parts.append(f"{len(failed)} task{'s' * (len(failed) != 1)} failed: {reasons[0][0]}{others}")
-    if missing > len(failed):
-        parts.append(f"{missing - len(failed)} tasks missing")
-    return "; ".join(parts)
-
-
-def _print_table(experiment, store, fmt, caption: bool = False) -> str:  # type: ignore[no-untyped-def]
-    """Print the experiment's tables; returns them as text for --output (Markdown for the
-    terminal format).
+def _print_report(r, fmt, caption: bool = False) -> str:  # type: ignore[no-untyped-def]
+    """Print one experiment's report (:func:`swiptopt.benchmark.tables.report`); returns its
+    text for --output (Markdown for the terminal format).
 
     The terminal titles name the experiment and its world. With ``caption`` (``compare``'s
     suites, or several experiments printed one after the other), the text formats start
@@ -260,35 +247,18 @@ def _print_table(experiment, store, fmt, caption: bool = False) -> str:  # type:
 
     from swiptopt.benchmark import tables
 
-    rows, missing = tables.aggregate(experiment, store)
-    note = _missing_note(experiment, store, missing)
-    title = f"{tables.suite_title(experiment)}: mean ± 95 % CI over layouts" + (f" ({note})" if note else "")
-    head = ""
-    if caption and fmt in ("terminal", "markdown"):
-        head = f"**{tables.suite_title(experiment)}**\n\n"
-    elif caption and fmt == "latex":
-        head = f"% {tables.suite_title(experiment)}\n"
-    elif caption and fmt == "csv":
-        click.echo(tables.suite_title(experiment), err=True)
+    text = tables.render_report(r, fmt, caption=caption)
+    if caption and fmt == "csv":
+        click.echo(r.title, err=True)
     if fmt == "terminal":
-        Console(width=max(160, Console().width)).print(tables.to_rich(rows, title))
-        text = head + tables.to_markdown(rows)  # what --output writes
+        console = Console(width=max(160, Console().width))
+        console.print(tables.to_rich(r.rows, r.heading))
+        if r.pairs:
+            console.print(tables.paired_to_rich(r.pairs, r.paired_heading))
     else:
-        text = head + tables.render(rows, fmt)
         click.echo(text, nl=False)
-        if note:
-            click.echo(f"{experiment.name}: {note}", err=True)
-    pairs = tables.paired(experiment, store)
-    if pairs:
-        paired_title = tables.paired_title(experiment)
-        if fmt == "terminal":
-            Console(width=max(160, Console().width)).print(tables.paired_to_rich(pairs, paired_title))
-            paired_text = tables.render_paired(pairs, "markdown")
-        else:
-            paired_text = tables.render_paired(pairs, fmt)
-            click.echo("")  # a blank line ends the first table
-            click.echo(paired_text, nl=False)
-        text += "\n" + paired_text
+        if r.note:
+            click.echo(f"{r.experiment.name}: {r.note}", err=True)
     return text
 
 
@@ -408,7 +378,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
     the planners as bands) and prints the curves' table."""
     from rich.console import Console
 
-    from swiptopt.benchmark import plots
+    from swiptopt.benchmark import plots, tables
     from swiptopt.benchmark.experiment import paper_figures
     from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
@@ -431,7 +401,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
                 console.print(f"{experiment.name}: {report.ran} run, {report.cached} stored")
             figure = plots.learning_curve_figure(experiments, store, outdir)
             console.print(", ".join(map(str, figure.paths)) or f"no figure: {figure.skipped}")
-            _print_curves(experiments, store, "markdown")
+            _print_curves([tables.report(e, store) for e in experiments], "markdown")
         _report_failures(console, failures)
         if failures:
             raise click.exceptions.Exit(EXIT_TASKS_FAILED)
@@ -462,6 +432,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
     """Print the tables of the experiments recorded in a results store (from the stored
     data alone: no plugin is loaded; a plugin's rows are labelled by its name)."""
+    from swiptopt.benchmark import tables
     from swiptopt.benchmark.store import ResultStore
 
     check_output_file(output, "--output")
@@ -471,7 +442,9 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
             raise ConfigError(f"no run of {name!r} in {store_path}" if name else f"no runs in {store_path}",
                               "experiment")
         caption = len(experiments) > 1
-        text = "\n".join(_print_table(experiment, store, fmt, caption=caption) for experiment in experiments)
+        reports = [tables.report(experiment, store) for experiment in experiments]
+        texts = [_print_report(r, fmt, caption=caption) for r in reports] + _print_curves(reports, fmt)
+        text = "\n".join(texts)
     if output:
         _write_output(output, text)
 

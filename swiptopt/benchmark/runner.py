@@ -73,7 +73,7 @@ NATIVE_MODULES = {
     "planner": ("numba", "sklearn.cluster", "ortools.constraint_solver.pywrapcp", "ortools.sat.python.cp_model",
                 "cvxpy", "highspy", "scipy.sparse.csgraph"),
 }
-#: Local worker processes (``--workers`` or ``local:N``) allowed per core of the machine.
+#: Local worker processes (``workers`` or a ``local:N`` scheduler) allowed per core of the machine.
 MAX_WORKERS_PER_CORE = 4
 #: Dask schemes that reach another process.
 DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
@@ -147,8 +147,9 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
         # the bound counts the nodes coverable from the grid's cells: in the continuous world a
         # node may be coverable from off-lattice positions only, so it bounds nothing there
         extra = {"upper_bound_return": upper_bound(scenario, env.tables).return_, **extra}
-    if grid and scenario.name == "tiny" and scenario.channel == "none" and scenario.failure_prob_max == 0:
-        # decided before running: the search's size is bounded from the scenario alone
+    if grid and scenario.channel == "none" and scenario.failure_prob_max == 0:
+        # a deterministic instance: whether its exact optimum is affordable is decided before
+        # searching, from a bound on the search's size that the scenario alone gives
         states = exact_state_bound(scenario, env.tables)
         if states <= EXACT_STATE_LIMIT:
             try:
@@ -282,16 +283,16 @@ def warm_up(tasks: list[dict[str, Any]]) -> None:
 
 
 def check_run_options(workers: int | None, scheduler: str | None) -> int:
-    """Validate ``--workers`` and ``--scheduler`` (before any task runs); returns the number
-    of local workers to use (ignored with a scheduler)."""
+    """Validate :func:`execute`'s ``workers`` and ``scheduler`` (before any task runs);
+    returns the number of local workers to use (ignored with a scheduler)."""
     cores = os.cpu_count() or 1
     limit = MAX_WORKERS_PER_CORE * cores
     if workers is not None and scheduler is not None:
-        raise ConfigError("give --workers (local processes) or --scheduler (Dask), not both", "workers")
+        raise ConfigError("give workers (local processes) or scheduler (Dask), not both", "workers")
     if workers is not None:
         if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= limit:
             raise ConfigError(
-                f"--workers {workers} must be an integer in [1, {limit}] "
+                f"workers = {workers!r} must be an integer in [1, {limit}] "
                 f"({MAX_WORKERS_PER_CORE} per core, {cores} cores)", "workers")
     if scheduler is not None:
         _check_scheduler(scheduler, limit)
@@ -301,31 +302,31 @@ def check_run_options(workers: int | None, scheduler: str | None) -> int:
 def _check_scheduler(scheduler: str, limit: int) -> None:
     usage = "use local:N (a local Dask cluster of N workers) or a scheduler address such as tcp://HOST:PORT"
     if not isinstance(scheduler, str) or not scheduler.strip():
-        raise ConfigError(f"--scheduler {scheduler!r} is empty: {usage}", "scheduler")
+        raise ConfigError(f"scheduler = {scheduler!r} is empty: {usage}", "scheduler")
     if scheduler.startswith("local:"):
         count = scheduler.split(":", 1)[1]
         if not count.isdigit() or not 1 <= int(count) <= limit:
-            raise ConfigError(f"--scheduler {scheduler!r}: N must be an integer in [1, {limit}]", "scheduler")
+            raise ConfigError(f"scheduler = {scheduler!r}: N must be an integer in [1, {limit}]", "scheduler")
         return
     try:
         from distributed.comm.addressing import parse_address, parse_host_port
     except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
+        raise ConfigError("scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
     try:
         scheme, location = parse_address(scheduler, strict=False)
     except (ValueError, TypeError) as exc:
-        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}",
+        raise ConfigError(f"scheduler = {scheduler!r} is not a scheduler address ({exc}): {usage}",
                           "scheduler") from None
     if scheme not in DASK_SCHEMES:
-        raise ConfigError(f"--scheduler {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
+        raise ConfigError(f"scheduler = {scheduler!r}: unknown scheme {scheme!r}; one of {', '.join(DASK_SCHEMES)}",
                           "scheduler")
     try:
         host, port = parse_host_port(location)
     except (ValueError, TypeError) as exc:
-        raise ConfigError(f"--scheduler {scheduler!r} is not a scheduler address ({exc}): {usage}",
+        raise ConfigError(f"scheduler = {scheduler!r} is not a scheduler address ({exc}): {usage}",
                           "scheduler") from None
     if not host or not 1 <= port <= 65535:
-        raise ConfigError(f"--scheduler {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
+        raise ConfigError(f"scheduler = {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
 
 
 def _start_pool_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
@@ -404,7 +405,7 @@ def dask_client(scheduler: str | None) -> Iterator[Any]:
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
+        raise ConfigError("scheduler needs dask.distributed: pip install 'swiptopt[bench]'", "scheduler") from None
     cluster = None
     if scheduler.startswith("local:"):
         cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1, processes=True,

@@ -113,17 +113,41 @@ def _task_mean(records: list[dict[str, Any]], metric: str) -> float | None:
     return float(np.mean(values)) if values else None
 
 
-def _stored(experiment: Experiment, store: ResultStore) -> tuple[dict[tuple[int, str], dict[int, dict[str, Any]]], int]:
-    """The stored results by (sweep point index, algorithm), each keyed by task seed (which
-    names the layout and the seed), and how many tasks are missing."""
+@dataclass(frozen=True, eq=False)
+class Stored:
+    """An experiment's results as read from a store, once: the task grid is expanded and the
+    store read a single time, and every table of the experiment is built from this."""
+
+    by_row: dict[tuple[int, str], dict[int, dict[str, Any]]]
+    """The results by (sweep point index, row), each keyed by task seed (which names the
+    layout and the seed)."""
+    missing: int
+    """Tasks without a result."""
+    failures: dict[str, str]
+    """Task key -> reason, for the tasks whose last try failed."""
+
+    def get(self, key: tuple[int, str], default: Any = None) -> Any:
+        return self.by_row.get(key, default)
+
+    def items(self) -> Any:
+        return self.by_row.items()
+
+
+def load_results(experiment: Experiment, store: ResultStore) -> Stored:
+    """The experiment's stored results and failures (:class:`Stored`)."""
     tasks = experiment.tasks()
-    results = store.get({t.key for t in tasks})
+    keys = {t.key for t in tasks}
+    results = store.get(keys)
     points = experiment.points()
     out: dict[tuple[int, str], dict[int, dict[str, Any]]] = {}
     for t in tasks:
         if t.key in results:
             out.setdefault((points.index(t.point), t.row), {})[t.seed] = results[t.key]
-    return out, len(tasks) - sum(len(v) for v in out.values())
+    return Stored(out, len(tasks) - sum(len(v) for v in out.values()), store.failures(keys))
+
+
+def _stored(experiment: Experiment, store: ResultStore | Stored) -> Stored:
+    return store if isinstance(store, Stored) else load_results(experiment, store)
 
 
 def _recorded_bounds(extra: dict[str, Any]) -> list[PolicyBound]:
@@ -199,9 +223,11 @@ def _layout_means(by_seed: dict[int, dict[str, Any]], metric: str) -> dict[int, 
     return {layout: float(np.mean(v)) for layout, v in per_layout.items()}
 
 
-def aggregate(experiment: Experiment, store: ResultStore) -> tuple[list[Row], int]:
-    """Rows of the experiment's stored results, and how many of its tasks are missing."""
-    stored, missing = _stored(experiment, store)
+def aggregate(experiment: Experiment, store: ResultStore | Stored) -> tuple[list[Row], int]:
+    """Rows of the experiment's stored results, and how many of its tasks are missing
+    (``store``: a results store, or the experiment's results already read from one)."""
+    stored = _stored(experiment, store)
+    missing = stored.missing
     names = labels()
     rows = []
     for p, point in enumerate(experiment.points()):
@@ -297,7 +323,7 @@ class PairedRow:
     ratios: dict[str, Ratio]
 
 
-def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[PairedRow]:
+def paired(experiment: Experiment, store: ResultStore | Stored, seed: int = 0) -> list[PairedRow]:
     """Every algorithm but the experiment's baseline, against the baseline, task by task.
 
     The bootstrap draws from a generator seeded with ``seed``, so a table prints the same
@@ -305,7 +331,7 @@ def paired(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[Pa
     """
     if not experiment.baseline:
         return []
-    stored, _ = _stored(experiment, store)
+    stored = _stored(experiment, store)
     names = labels()
     rng = np.random.default_rng(seed)
     rows = []
@@ -574,14 +600,14 @@ class CurveRow:
     """The last budget's mean over the reference's, paired by layout (seeds averaged)."""
 
 
-def curve_rows(experiment: Experiment, store: ResultStore, seed: int = 0) -> list[CurveRow]:
+def curve_rows(experiment: Experiment, store: ResultStore | Stored, seed: int = 0) -> list[CurveRow]:
     """The learning curves of an experiment with ``budgets`` (empty without)."""
     if not experiment.budgets:
         return []
-    stored, _ = _stored(experiment, store)
+    stored = _stored(experiment, store)
     names = labels()
     rng = np.random.default_rng(seed)
-    rows, _ = aggregate(experiment, store)
+    rows, _ = aggregate(experiment, stored)
     planners = [r for r in rows if "@" not in r.algorithm and r.algorithm not in experiment.budgets]
     best = max(planners, key=lambda r: r.summaries["return"].mean, default=None)
     out = []
@@ -618,3 +644,80 @@ def curves_to_markdown(rows: list[CurveRow]) -> str:
         ratio = _ratio_cell(r.ratio) + f" ({r.reference})" if r.ratio is not None else "n/a"
         cells.append([r.experiment, r.label, curve, "yes" if r.flat else "no", f"{r.near_plateau:,}", ratio])
     return _markdown(heads, cells)
+
+
+# ------------------------------------------------------------------ the report
+
+
+@dataclass(frozen=True, eq=False)
+class Report:
+    """Everything printed of one experiment, as data: built once from one read of the store
+    (:func:`report`), rendered per format (:func:`render_report`; the CLI renders the
+    terminal's tables from the same rows)."""
+
+    experiment: Experiment
+    title: str
+    """The experiment and its world (:func:`suite_title`)."""
+    note: str
+    """Failed and missing tasks (``k tasks failed: reason; m tasks missing``), or ''."""
+    rows: list[Row]
+    pairs: list[PairedRow]
+    """Against the baseline (empty without one)."""
+    curves: list[CurveRow]
+    """The learning curves (empty without budgets)."""
+
+    @property
+    def heading(self) -> str:
+        """The main table's title."""
+        return f"{self.title}: mean ± 95 % CI over layouts" + (f" ({self.note})" if self.note else "")
+
+    @property
+    def paired_heading(self) -> str:
+        return paired_title(self.experiment) if self.pairs else ""
+
+
+def missing_note(stored: Stored) -> str:
+    """``k tasks failed: reason; m tasks missing`` for the tasks without a result, or ''."""
+    parts = []
+    if stored.failures:
+        reasons = Counter(stored.failures.values()).most_common()
+        others = f" (and {len(reasons) - 1} other reasons)" if len(reasons) > 1 else ""
+        n = len(stored.failures)
+        parts.append(f"{n} task{'s' * (n != 1)} failed: {reasons[0][0]}{others}")
+    if stored.missing > len(stored.failures):
+        parts.append(f"{stored.missing - len(stored.failures)} tasks missing")
+    return "; ".join(parts)
+
+
+def report(experiment: Experiment, store: ResultStore, seed: int = 0) -> Report:
+    """The experiment's :class:`Report` from ``store`` (read once); ``seed`` seeds the
+    bootstrap of the paired table and the curves' ratios."""
+    stored = load_results(experiment, store)
+    rows, _ = aggregate(experiment, stored)
+    return Report(experiment, suite_title(experiment), missing_note(stored), rows, paired(experiment, stored, seed),
+                  curve_rows(experiment, stored, seed))
+
+
+def render_report(r: Report, fmt: str, *, caption: bool = False) -> str:
+    """The report's tables as text: the main table, then the paired one after a blank line,
+    in ``fmt`` (Markdown, CSV or LaTeX; the terminal's text is Markdown). With ``caption``,
+    Markdown starts with the title in bold and LaTeX with it as a comment (CSV stays plain
+    data)."""
+    fmt = "markdown" if fmt == "terminal" else fmt
+    head = ""
+    if caption and fmt == "markdown":
+        head = f"**{r.title}**\n\n"
+    elif caption and fmt == "latex":
+        head = f"% {r.title}\n"
+    text = head + render(r.rows, fmt)
+    if r.pairs:
+        text += "\n" + render_paired(r.pairs, fmt)
+    return text
+
+
+CURVES_TITLE = "learning curves: return at each budget, flat at the end, last budget / best planner"
+
+
+def render_curves(rows: list[CurveRow]) -> str:
+    """The learning curves of one or more reports as one Markdown table under its title."""
+    return f"**{CURVES_TITLE}**\n\n" + curves_to_markdown(rows)

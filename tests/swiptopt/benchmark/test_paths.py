@@ -49,9 +49,9 @@ def refused(capsys, args, *words):
         (["--output", "{tmp}/no/dir/t.md"], ["--output", "does not exist"]),
         (["--output", "{tmp}/e.toml/t.md"], ["--output", "is a file, not a directory"]),
         (["--output", "{tmp}"], ["--output", "directory"]),
-        (["--scheduler", "::::"], ["--scheduler", "not a scheduler address"]),
-        (["--scheduler", "local:-1"], ["--scheduler", "local:-1"]),
-        (["--workers", "0"], ["--workers 0"]),
+        (["--scheduler", "::::"], ["scheduler = '::::'", "not a scheduler address"]),
+        (["--scheduler", "local:-1"], ["scheduler = 'local:-1'"]),
+        (["--workers", "0"], ["workers = 0"]),
         (["--workers", "2", "--scheduler", "local:2"], ["not both"]),
     ],
 )
@@ -69,7 +69,7 @@ def test_table_plot_and_reproduce_refuse_bad_outputs(stored, tmp_path, capsys):
     refused(capsys, ["plot", str(stored), "--outdir", str(afile)], "--outdir")
     store = tmp_path / "new.sqlite"
     refused(capsys, ["reproduce", "paper", "--store", str(store), "--outdir", str(afile / "figs")], "--outdir")
-    refused(capsys, ["reproduce", "paper", "--store", str(store), "--scheduler", "tcp://h"], "--scheduler")
+    refused(capsys, ["reproduce", "paper", "--store", str(store), "--scheduler", "tcp://h"], "scheduler = ")
     assert not store.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
 

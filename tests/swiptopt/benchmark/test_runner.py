@@ -134,8 +134,8 @@ def test_run_options_are_checked_before_anything_runs(tmp_path):
                                        "scenario": {"preset": "paper", "n_nodes": 4}, "algorithms": {"random": {}}})
     too_many = runner.MAX_WORKERS_PER_CORE * (os.cpu_count() or 1) + 1
     for options, words in (
-        ({"workers": 0}, "--workers 0"),
-        ({"workers": too_many}, f"--workers {too_many}"),
+        ({"workers": 0}, "workers = 0"),
+        ({"workers": too_many}, f"workers = {too_many}"),
         ({"workers": 2, "scheduler": "local:2"}, "not both"),
         ({"scheduler": "::::"}, "not a scheduler address"),
         ({"scheduler": "local:0"}, "local:0"),

@@ -1,5 +1,5 @@
-"""run_task decides from the scenario alone whether the exact optimum of a tiny task is
-affordable, and records why when it is not."""
+"""run_task decides from the scenario alone (deterministic, and a bound on the search's size)
+whether the exact optimum of a task is affordable, and records why when it is not."""
 
 from __future__ import annotations
 
@@ -37,3 +37,13 @@ def test_an_affordable_optimum_is_computed_and_bounds_the_episode():
     assert "optimum_skipped" not in extra
     assert result["records"][0]["return"] <= extra["optimum_return"] + 1e-9
     assert extra["optimum_return"] <= extra["upper_bound_return"] + 1e-9
+
+
+def test_the_instance_decides_not_its_preset_name():
+    """A deterministic instance as small as the tiny preset gets its optimum whatever it is
+    called; a stochastic one never does."""
+    result = run_task(tiny_task(name="small-custom"))
+    assert "optimum_return" in result["extra"]
+    assert result["records"][0]["return"] <= result["extra"]["optimum_return"] + 1e-9
+    fading = run_task(tiny_task(channel="rician"))
+    assert "optimum_return" not in fading["extra"] and "optimum_skipped" not in fading["extra"]
