@@ -26,19 +26,29 @@ import numpy as np
 
 from planners.clustering import coverage_tables, hover_link, kmeans_hover_points
 from planners.grid import bfs_distances
+from planners.tsp import METHODS as TSP_METHODS
 from swiptopt import kernel as K
 from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
-from swiptopt.validation import Spec, check_value
+from swiptopt.validation import Param, Parameterised
 
 TOUR_COSTS = ("auto", "euclidean", "grid", "ompl")
 
-#: What the planners' checked arguments may hold (:func:`swiptopt.validation.check_value`).
-ARGUMENTS = {
-    "linger_steps": Spec(kind="int", lo=0, strict=True, unit="steps",
-                         doc="extra hover steps while covered nodes hold data"),
-    "max_dwell_steps": Spec(kind="int", lo=1, strict=True, unit="steps", doc="the longest hover at one node"),
-    "tour_costs": Spec(kind="str", choices=TOUR_COSTS, doc="what the tour's arc costs measure"),
+#: The settings the grid's planners share, declared once (:class:`swiptopt.validation.Param`).
+LINGER_STEPS = Param(default=2, kind="int", lo=0, hi=1_000_000, strict=True, unit="steps",
+                     doc="extra hover steps while covered nodes hold data")
+#: k-means + TSP's settings (:class:`KMeansTspPlanner`).
+KMEANS_TSP_PARAMETERS = {
+    "k": Param(default=None, kind="int", lo=1, optional=True, strict=True,
+               doc="hover groups (default: the fewest that fit the coverage cone)"),
+    "tsp_method": Param(default="auto", kind="str", choices=TSP_METHODS, doc="the TSP solver (planners.tsp)"),
+    "tsp_time_limit_s": Param(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
+                              doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
+    "tour_costs": Param(default="auto", kind="str", choices=TOUR_COSTS, doc="what the tour's arc costs measure"),
+    "ompl_time_limit_s": Param(default=0.2, lo=0, lo_open=True, hi=600, unit="s",
+                               doc="OMPL time limit per pair of stops (tour_costs = 'ompl')"),
+    "seed": Param(default=0, kind="int", lo=0, strict=True, doc="k-means' seed"),
+    "linger_steps": LINGER_STEPS,
 }
 
 # the move that undoes each move (used to walk a BFS tree grown from the target)
@@ -109,11 +119,15 @@ def _with_reach(plan: Plan, where: Reach, unreachable_stops: list[int] | None = 
     return plan
 
 
-class _Executor:
-    """Follows a :class:`Plan` in the environment, one action per ``predict``."""
+class PlanExecutor(Parameterised):
+    """Follows a :class:`Plan` in the environment, one action per ``predict``; a planner
+    declares its settings in :attr:`parameters` (``linger_steps`` among them, or fixed)."""
 
-    def __init__(self, *, linger_steps: int = 2):
-        self.linger_steps = check_value("linger_steps", linger_steps, ARGUMENTS["linger_steps"])
+    parameters = {"linger_steps": LINGER_STEPS}
+    linger_steps: int
+
+    def __init__(self, **settings: Any):
+        super().__init__(**settings)
         self._env: Any = None
         self._trees: dict[int, np.ndarray] = {}
 
@@ -179,7 +193,7 @@ class _Executor:
         return K.HOVER
 
 
-class KMeansTspPlanner(_Executor):
+class KMeansTspPlanner(PlanExecutor):
     """k-means hover points -> TSP tour -> convex dwell times -> grid moves and hovers.
 
     ``tour_costs``: ``"euclidean"`` (3D distances between cell centres), ``"grid"``
@@ -196,25 +210,7 @@ class KMeansTspPlanner(_Executor):
     says ``tsp time_limit``.
     """
 
-    def __init__(
-        self,
-        *,
-        k: int | None = None,
-        tsp_method: str = "auto",
-        tsp_time_limit_s: float = 60.0,
-        tour_costs: str = "auto",
-        ompl_time_limit_s: float = 0.2,
-        seed: int = 0,
-        linger_steps: int = 2,
-    ):
-        super().__init__(linger_steps=linger_steps)
-        check_value("tour_costs", tour_costs, ARGUMENTS["tour_costs"])
-        self.k = k
-        self.tsp_method = tsp_method
-        self.tsp_time_limit_s = tsp_time_limit_s
-        self.tour_costs = tour_costs
-        self.ompl_time_limit_s = ompl_time_limit_s
-        self.seed = seed
+    parameters = KMEANS_TSP_PARAMETERS
 
     def make_plan(self, env: Any) -> Plan:
         from planners.power_split import dwell_steps, stop_inputs
@@ -294,14 +290,16 @@ class KMeansTspPlanner(_Executor):
 
 
 
-class LawnmowerPlanner(_Executor):
+class LawnmowerPlanner(PlanExecutor):
     """The standard survey sweep: parallel lanes along x at one depth, lanes spaced by the
     coverage footprint, lingering where covered nodes still hold data."""
 
-    def __init__(self, *, depth_cell: int = 0, lane_spacing_cells: int | None = None, linger_steps: int = 2):
-        super().__init__(linger_steps=linger_steps)
-        self.depth_cell = depth_cell
-        self.lane_spacing_cells = lane_spacing_cells
+    parameters = {
+        "depth_cell": Param(default=0, kind="int", lo=0, strict=True, doc="depth of the survey, cells"),
+        "lane_spacing_cells": Param(default=None, kind="int", lo=1, hi=100_000, optional=True, strict=True,
+                                    doc="lane spacing, cells (default: the cone's footprint)"),
+        "linger_steps": LINGER_STEPS,
+    }
 
     def make_plan(self, env: Any) -> Plan:
         scenario = env.scenario
@@ -335,13 +333,13 @@ class LawnmowerPlanner(_Executor):
         return True  # a survey visits every waypoint
 
 
-class GreedyPlanner(_Executor):
+class GreedyPlanner(PlanExecutor):
     """Go to the nearest node still to serve (by grid moves to its best hover cell), hover
     until it is served or ``max_dwell_steps`` pass, repeat."""
 
-    def __init__(self, *, max_dwell_steps: int = 8):
-        super().__init__(linger_steps=0)
-        self.max_dwell_steps = check_value("max_dwell_steps", max_dwell_steps, ARGUMENTS["max_dwell_steps"])
+    parameters = {"max_dwell_steps": Param(default=8, kind="int", lo=1, hi=1_000_000, strict=True, unit="steps",
+                                           doc="hover steps before giving up on a node")}
+    linger_steps = 0  # it moves on as soon as a node is served or given up
 
     def make_plan(self, env: Any) -> Plan:
         where = reachable(env.tables)

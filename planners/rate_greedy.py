@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from planners.policies import Plan, _Executor
+from planners.policies import Plan, PlanExecutor
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
 
@@ -69,15 +69,15 @@ class _RateChooser:
         return int(cells[j])
 
 
-class RateGreedyPlanner(_Executor):
+class RateGreedyPlanner(PlanExecutor):
     """Head for the cell earning the most reward per step of travel and hover (module doc).
 
     A closed-loop policy: each ``predict`` reads what the nodes still need from the
     environment's state and decides again.
     """
 
-    def __init__(self) -> None:
-        super().__init__(linger_steps=0)
+    parameters: dict = {}  # nothing to set: the rate decides
+    linger_steps = 0
 
     def make_plan(self, env: Any) -> Plan:
         self._chooser = _RateChooser(step_model(env.tables))

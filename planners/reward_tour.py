@@ -25,15 +25,16 @@ choice is worth.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
-from planners.policies import KMeansTspPlanner, Plan, Stop
+from planners.policies import KMEANS_TSP_PARAMETERS, LINGER_STEPS, KMeansTspPlanner, Plan, Stop
 from planners.service import StepModel, step_model
 from planners.walk_search import Walks
 from swiptopt import fpmath
-from swiptopt.validation import Spec, check_value
+from swiptopt.validation import Param
 
 SELECTIONS = ("reward", "coverage")
 DWELLS = ("steps", "convex")
@@ -41,11 +42,19 @@ DWELLS = ("steps", "convex")
 #: Held-Karp orders at most this many stops (13 nodes with the start): exact and fast.
 MAX_EXACT_STOPS = 12
 
-#: What the planner's own checked arguments may hold (:func:`swiptopt.validation.check_value`).
-ARGUMENTS = {
-    "selection": Spec(kind="str", choices=SELECTIONS, doc="how the hover points and K are chosen"),
-    "dwell": Spec(kind="str", choices=DWELLS, doc="how the service time is split among the stops"),
-    "k_max": Spec(kind="int", lo=1, strict=True, doc="the most k-means groups tried"),
+#: The reward tour's settings: k-means + TSP's and its own (:class:`RewardKMeansTspPlanner`).
+REWARD_TOUR_PARAMETERS = {
+    "selection": Param(default="reward", kind="str", choices=SELECTIONS,
+                       doc="hover points: 'reward' (every K up to k_max, each walk scored by the simulator's "
+                           "reward) or 'coverage' (the fewest groups that fit the cone)"),
+    "dwell": Param(default="steps", kind="str", choices=DWELLS,
+                   doc="dwell: 'steps' (whole steps by marginal reward) or 'convex' (the convex dwell/split program)"),
+    **KMEANS_TSP_PARAMETERS,
+    "k": Param(default=None, kind="int", lo=1, optional=True, strict=True,
+               doc="hover groups (default: chosen by the selection rule)"),
+    "k_max": Param(default=MAX_EXACT_STOPS, kind="int", lo=1, hi=100, strict=True,
+                   doc="largest K the reward selection tries"),
+    "linger_steps": Param(**{**dataclasses.asdict(LINGER_STEPS), "default": 0}),
 }
 
 
@@ -58,21 +67,7 @@ class RewardKMeansTspPlanner(KMeansTspPlanner):
     to tours longer than :data:`MAX_EXACT_STOPS` stops.
     """
 
-    def __init__(
-        self,
-        *,
-        selection: str = "reward",
-        dwell: str = "steps",
-        k: int | None = None,
-        k_max: int = MAX_EXACT_STOPS,
-        linger_steps: int = 0,
-        seed: int = 0,
-        **tsp_settings: Any,
-    ):
-        super().__init__(k=k, seed=seed, linger_steps=linger_steps, **tsp_settings)
-        self.selection = check_value("selection", selection, ARGUMENTS["selection"])
-        self.dwell = check_value("dwell", dwell, ARGUMENTS["dwell"])
-        self.k_max = check_value("k_max", k_max, ARGUMENTS["k_max"])
+    parameters = REWARD_TOUR_PARAMETERS
 
     def make_plan(self, env: Any) -> Plan:
         if self.selection == "coverage" and self.dwell == "convex":

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -145,6 +145,44 @@ def check_params(params: Mapping[str, Param], values: Mapping[str, Any], owner: 
     return {name: check_value(name, values.get(name, param.default), param) for name, param in params.items()}
 
 
+class Parameterised:
+    """A class whose constructor takes the keyword arguments declared once, in
+    :attr:`parameters` (name -> :class:`Param`): the constructor checks them against the
+    declarations (:func:`check_params`) and keeps each as the attribute of the same name,
+    and each subclass gets the signature its declarations make (``help`` and ``inspect``
+    show ``Planner(*, k=None, k_max=20, ...)``). The benchmark's registry, its listing and
+    its validation read the same declarations. Names in :attr:`positional` may also be given
+    by position, in that order."""
+
+    #: The constructor's arguments, name -> declaration.
+    parameters: ClassVar[dict[str, Param]] = {}
+    #: Arguments that may be given by position, in order.
+    positional: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, *args: Any, **settings: Any) -> None:
+        if len(args) > len(self.positional):
+            raise ConfigError(f"{type(self).__name__} takes at most {len(self.positional)} positional arguments "
+                              f"({', '.join(self.positional) or 'none'}): give the others by name", "arguments")
+        for name, value in zip(self.positional, args):
+            if name in settings:
+                raise ConfigError(f"{type(self).__name__} got {name!r} twice", name)
+            settings[name] = value
+        for name, value in check_params(self.parameters, settings, type(self).__name__).items():
+            setattr(self, name, value)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        import inspect
+
+        super().__init_subclass__(**kwargs)
+        kinds = {name: inspect.Parameter.POSITIONAL_OR_KEYWORD for name in cls.positional}
+        ordered = [*cls.positional, *(n for n in cls.parameters if n not in cls.positional)]
+        cls.__signature__ = inspect.Signature([  # type: ignore[attr-defined]
+            inspect.Parameter(name, kinds.get(name, inspect.Parameter.KEYWORD_ONLY),
+                              default=cls.parameters[name].default)
+            for name in ordered
+        ])
+
+
 def check_keys(where: str, mapping: Any, field: str | None = None, error: type[ConfigError] = ConfigError) -> dict:
     """``mapping`` as a dict whose keys are all strings; otherwise ``error`` naming ``where``."""
     if not isinstance(mapping, Mapping):
@@ -155,4 +193,4 @@ def check_keys(where: str, mapping: Any, field: str | None = None, error: type[C
     return dict(mapping)
 
 
-__all__ = ["KINDS", "Param", "Spec", "check_keys", "check_params", "check_value"]
+__all__ = ["KINDS", "Param", "Parameterised", "Spec", "check_keys", "check_params", "check_value"]

@@ -42,7 +42,7 @@ class OmplTourPlanner(TourPlanner):
     """
 
     parameters = {
-        **TOUR_PARAMETERS,
+        **TourPlanner.parameters,
         "ompl_iterations": Param(default=150, kind="int", lo=1, hi=10**7,
                                  doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
         "ompl_planner": Param(default="InformedRRTstar", kind="str", choices=OMPL_TOUR_PLANNERS,
@@ -85,7 +85,7 @@ class StraightLinePlanner(TourPlanner):
     cost this planner more than they earned (``benchmarks/continuous_planners.py`` compares).
     """
 
-    parameters = {**TOUR_PARAMETERS, "adaptive": Param(
+    parameters = {**TourPlanner.parameters, "adaptive": Param(
         default=False, kind="bool", doc=TOUR_PARAMETERS["adaptive"].doc + " (off: the routes cross obstacles)")}
     tour_cost = "length"
 

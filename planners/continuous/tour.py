@@ -51,7 +51,7 @@ from planners.continuous.executor import Executor
 from planners.continuous.model import PointService, hover_values, point_model, step_functions
 from planners.continuous.plan import ContinuousPlan, Leg, LegPath, OmplCall, leg_steps
 from swiptopt.errors import ConfigError
-from swiptopt.validation import Param, check_params
+from swiptopt.validation import Param, Parameterised
 
 #: The largest planner seed (OMPL is seeded with seed + 1, which must be below 2**32).
 MAX_SEED = 2**32 - 2
@@ -69,6 +69,9 @@ START_DEPTH_LEVELS = 4
 
 #: The compass search stops once its step is below this, m.
 SEARCH_MIN_STEP_M = 0.25
+
+#: The planner's seed: k-means' (and OMPL's, as seed + 1, which must be below 2**32).
+SEED = Param(default=0, kind="int", lo=0, hi=MAX_SEED, strict=True, doc="k-means' seed; OMPL's is seed + 1")
 
 #: The settings every continuous tour planner takes (:class:`TourPlanner`), declared once:
 #: the planners' constructors, the benchmark's registry and its listing read them.
@@ -94,7 +97,7 @@ TOUR_PARAMETERS: dict[str, Param] = {
 }
 
 
-class TourPlanner:
+class TourPlanner(Parameterised):
     """The shared pipeline (module docstring); subclasses choose the legs
     (:meth:`leg_between`) and declare their settings in :attr:`parameters`.
 
@@ -104,29 +107,17 @@ class TourPlanner:
     """
 
     #: The settings, name -> declaration (:class:`swiptopt.validation.Param`).
-    parameters: dict[str, Param] = TOUR_PARAMETERS
+    parameters = {"seed": SEED, **TOUR_PARAMETERS}
+    positional = ("seed",)
     #: What the tour minimises over the legs: ``"energy_j"`` or ``"length"``.
     tour_cost = "energy_j"
 
-    def __init__(self, seed: int = 0, **settings: Any):
-        self.seed = check_params({"seed": Param(kind="int", lo=0, hi=MAX_SEED)}, {"seed": seed})["seed"]
-        for name, value in check_params(self.parameters, settings, type(self).__name__).items():
-            setattr(self, name, value)
+    def __init__(self, *args: Any, **settings: Any):
+        super().__init__(*args, **settings)
         self._plans: dict[str, ContinuousPlan] = {}
         self._env: Any = None
         self._executor: Executor | None = None
         self.ompl_calls_: list[OmplCall] = []  # the OMPL plans of the layout being planned
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        """Give each planner the signature its declared settings make, so that help() and
-        inspect show ``Planner(seed=0, *, k=None, k_max=20, ...)``."""
-        import inspect
-
-        super().__init_subclass__(**kwargs)
-        params = [inspect.Parameter("seed", inspect.Parameter.POSITIONAL_OR_KEYWORD, default=0, annotation=int)]
-        params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=p.default)
-                   for name, p in cls.parameters.items()]
-        cls.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
 
     # ------------------------------------------------------------- policy interface
 

@@ -90,7 +90,7 @@ class GridStops:
     """(C, n_cells) int32: moves from every cell to each candidate (-1: no way)."""
     via_to: np.ndarray
     """(C, n_cells) int8: the move into every cell on a shortest path grown from the candidate
-    (the executor walks it backwards, as :class:`planners.policies._Executor` does)."""
+    (the executor walks it backwards, as :class:`planners.policies.PlanExecutor` does)."""
     data_weight: float
     energy_weight: float
     worth: float

@@ -48,6 +48,7 @@ than the algorithm's own is refused, naming it. The continuous world has one obs
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -57,8 +58,11 @@ from pathlib import Path
 from typing import Any
 
 from planners.bounds import MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP
+from planners.continuous.planners import OmplTourPlanner, StraightLinePlanner
 from planners.optimal import BUDGETS
-from planners.paths3d import CRASHING_PLANNERS, NO_PYTHON_OBJECTIVE_PLANNERS, PLANNERS
+from planners.policies import GreedyPlanner, LawnmowerPlanner
+from planners.reward_tour import RewardKMeansTspPlanner
+from rl.config import TABULAR_PARAMETERS
 from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size, limits, training_log_note
 from swiptopt.validation import Spec, check_keys, check_value
@@ -274,18 +278,8 @@ _RL_TRAINING = {
     "backend": Setting(default="compiled", kind="str", choices=("python", "compiled"),
                        doc="training loop: the compiled kernel or the plain Gymnasium loop"),
 }
-_TABULAR = {
-    "learning_rate": Setting(default=0.75, lo=0, lo_open=True, hi=1, doc="TD step size"),
-    "discount": Setting(default=0.99, lo=0, hi=1, doc="discount factor gamma"),
-    "epsilon_start": Setting(default=1.0, lo=0, hi=1, doc="exploration probability of the first episode"),
-    "epsilon_decay": Setting(default=0.999, lo=0, lo_open=True, hi=1, doc="epsilon factor per episode"),
-    "epsilon_min": Setting(default=0.001, lo=0, hi=1, doc="floor of epsilon"),
-    "replay_size": Setting(default=0, kind="int", lo=0, hi=10**7,
-                           doc="experience-replay memory in transitions, 0 for none (the paper's Table I: 1000; "
-                               "needs backend = 'python')"),
-    "replay_batch": Setting(default=4, kind="int", lo=1, hi=10**4,
-                            doc="transitions replayed after every step when replay is on (Table I: 4)"),
-}
+_TABULAR = {name: Setting(**{**dataclasses.asdict(param), "strict": False})
+            for name, param in TABULAR_PARAMETERS.items()}
 
 
 def _check_tabular(name: str) -> Callable[[dict[str, Any]], None]:
@@ -588,43 +582,41 @@ _STOP_PPO = {
 _NOT_SB3 += ("candidates", "legs")
 
 
-_LINGER = Setting(default=2, kind="int", lo=0, hi=_STEPS, doc="extra hover steps while covered nodes hold data")
+def declared(cls: Any, *, skip: tuple[str, ...] = (), **overrides: dict[str, Any]) -> dict[str, Setting]:
+    """An algorithm's settings as its class declares them (``cls.parameters``, name ->
+    :class:`swiptopt.validation.Param`), read, not copied: the registry adds only what is the
+    benchmark's own, per setting (``quick``: the value under ``--quick``; ``hi_of`` and
+    ``hi_doc``: an upper end the task's scenario sets). ``skip`` leaves out arguments the
+    benchmark sets itself (the seed)."""
+    out = {}
+    for name, param in cls.parameters.items():  # type: ignore[attr-defined]
+        if name not in skip:
+            # an experiment file's 3.0 for an integer setting is read as 3 (the class, called
+            # from code, may be strict about it)
+            out[name] = Setting(**{**dataclasses.asdict(param), "strict": False, **overrides.get(name, {})})
+    unknown = set(overrides) - set(out)
+    if unknown:  # pragma: no cover - a registry typo
+        raise AssertionError(f"{cls.__name__} declares no {sorted(unknown)}")
+    return out
 
-#: The settings of the continuous-world planners (planners.continuous; the defaults are
-#: theirs): both place the hover points and dwells alike; the OMPL tour then plans its legs
-#: around obstacles and against the current.
-_HOVER_POINTS = {
-    "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes, hi_doc="n_nodes",
-                 doc="hover points (default: every K up to k_max tried, the best tour kept)"),
-    "k_max": Setting(default=20, kind="int", lo=1, hi=100, quick=4, doc="largest K tried"),
-    "k_patience": Setting(default=2, kind="int", lo=1, hi=100, optional=True, quick=1,
-                          doc="K is searched from k_max down and stops after this many K's worse than the best "
-                              "(none: every K)"),
-    "clearance_m": Setting(default=1.0, lo=0, lo_open=True, hi=100, unit="m",
-                           doc="distance legs and hover points keep from obstacles and the seabed"),
-    "search_evaluations": Setting(default=120, kind="int", lo=0, hi=10**6, quick=20,
-                                  doc="the hover-point search's budget per point, evaluations"),
-    "prune": Setting(default=True, kind="bool", doc="drop stops that do not pay for their detour"),
-    "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
-                                doc="TSP wall-clock safety net (the search stops on a deterministic budget)"),
-    "linger_steps": Setting(default=2, kind="int", lo=0, hi=_STEPS,
-                            doc="extra hover steps while covered nodes hold data (adaptive executor)"),
-}
-_ADAPTIVE = "adaptive"
-_ADAPTIVE_DOC = ("the executor skips stops already served, cuts dwells when its nodes are served and "
-                 "lingers while they hold data")
-_OMPL_TOUR = {
-    **_HOVER_POINTS,
-    _ADAPTIVE: Setting(default=True, kind="bool", doc=_ADAPTIVE_DOC),
-    "ompl_iterations": Setting(default=150, kind="int", lo=1, hi=10**7, quick=50,
-                               doc="OMPL planner iterations per leg (a deterministic budget, not a time limit)"),
-    "ompl_planner": Setting(default="InformedRRTstar", kind="str",
-                            choices=tuple(p for p in PLANNERS if p not in CRASHING_PLANNERS
-                                          and p not in NO_PYTHON_OBJECTIVE_PLANNERS),
-                            doc="the OMPL planner (one that takes the energy objective)"),
-    "ompl_legs": Setting(default="blocked", kind="str", choices=("blocked", "all"),
-                         doc="'blocked': OMPL only for legs whose straight segment is not free; 'all': every leg"),
-}
+
+def _n_nodes(scenario: Any) -> int:
+    return int(scenario.n_nodes)
+
+
+def _depth_cells(scenario: Any) -> int:
+    return int(scenario.grid_shape[2]) - 1
+
+
+#: The classes whose declared settings are the planners' (their modules are light: no solver
+#: is imported until a plan is made).
+_KMEANS_TSP = declared(RewardKMeansTspPlanner, skip=("seed",),
+                       k={"hi_of": _n_nodes, "hi_doc": "n_nodes"}, ompl_time_limit_s={"quick": 0.05})
+_LAWNMOWER = declared(LawnmowerPlanner, depth_cell={"hi_of": _depth_cells, "hi_doc": "the grid's depth cells - 1"})
+_CONTINUOUS_QUICK = {"k": {"hi_of": _n_nodes, "hi_doc": "n_nodes"}, "k_max": {"quick": 4}, "k_patience": {"quick": 1},
+                     "search_evaluations": {"quick": 20}}
+_OMPL_TOUR = declared(OmplTourPlanner, skip=("seed",), ompl_iterations={"quick": 50}, **_CONTINUOUS_QUICK)
+_STRAIGHT_LINE = declared(StraightLinePlanner, skip=("seed",), **_CONTINUOUS_QUICK)
 
 ALGORITHMS: dict[str, Algorithm] = {
     a.name: a
@@ -646,32 +638,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             "kmeans_tsp",
             "k-means + TSP",
             "planner",
-            {
-                # the defaults are planners.RewardKMeansTspPlanner's; the old behaviour is
-                # selection = "coverage", dwell = "convex", linger_steps = 2
-                "selection": Setting(default="reward", kind="str", choices=("reward", "coverage"),
-                                     doc="hover points: 'reward' (every K up to k_max, each walk scored by the "
-                                         "simulator's reward) or 'coverage' (the old rule: the fewest groups that "
-                                         "fit the cone)"),
-                "dwell": Setting(default="steps", kind="str", choices=("steps", "convex"),
-                                 doc="dwell: 'steps' (whole steps by marginal reward) or 'convex' (the old convex "
-                                     "dwell/split program)"),
-                "k": Setting(default=None, kind="int", lo=1, optional=True, hi_of=lambda s: s.n_nodes,
-                             hi_doc="n_nodes", doc="hover groups (default: chosen by the selection rule)"),
-                "k_max": Setting(default=12, kind="int", lo=1, hi=100,
-                                 doc="largest K the reward selection tries"),
-                "tsp_method": Setting(default="auto", kind="str", choices=("auto", "exact", "routing"),
-                                      doc="TSP solver (coverage selection, or tours over 12 stops)"),
-                "tsp_time_limit_s": Setting(default=60.0, lo=0, lo_open=True, hi=3600, unit="s",
-                                            doc="TSP wall-clock safety net (the search stops on a deterministic "
-                                                "budget)"),
-                "tour_costs": Setting(default="auto", kind="str", choices=("auto", "euclidean", "grid", "ompl"),
-                                      doc="costs between stops (coverage selection, or tours over 12 stops)"),
-                "ompl_time_limit_s": Setting(default=0.2, lo=0, lo_open=True, hi=600, unit="s", quick=0.05,
-                                             doc="OMPL time limit per pair of stops"),
-                "linger_steps": Setting(default=0, kind="int", lo=0, hi=_STEPS,
-                                        doc="extra hover steps while covered nodes hold data (the old planner: 2)"),
-            },
+            _KMEANS_TSP,
             _planner("RewardKMeansTspPlanner", seeded=True),
             uses_ompl=lambda settings: settings.get("tour_costs") == "ompl",
         ),
@@ -679,28 +646,18 @@ ALGORITHMS: dict[str, Algorithm] = {
             "lawnmower",
             "lawnmower",
             "planner",
-            {
-                "depth_cell": Setting(default=0, kind="int", lo=0, hi_of=lambda s: s.grid_shape[2] - 1,
-                                      hi_doc="the grid's depth cells - 1", doc="depth of the survey, cells"),
-                "lane_spacing_cells": Setting(default=None, kind="int", lo=1, hi=100_000, optional=True,
-                                              doc="lane spacing, cells (default: the cone's footprint)"),
-                "linger_steps": _LINGER,
-            },
+            _LAWNMOWER,
             _planner("LawnmowerPlanner"),
         ),
         Algorithm(
-            "greedy", "greedy", "planner",
-            {"max_dwell_steps": Setting(default=8, kind="int", lo=1, hi=_STEPS,
-                                        doc="hover steps before giving up on a node")},
+            "greedy", "greedy", "planner", declared(GreedyPlanner),
             _planner("GreedyPlanner"),
         ),
         Algorithm("rate_greedy", "rate-greedy", "planner", {}, _planner("RateGreedyPlanner")),
         Algorithm("ompl_tour", "OMPL tour", "planner", _OMPL_TOUR,
                   _planner("OmplTourPlanner", seeded=True, module="planners.continuous"),
                   worlds=(CONTINUOUS,), uses_ompl=lambda settings: True),
-        Algorithm("straight_line", "straight line", "planner",
-                  {**_HOVER_POINTS, _ADAPTIVE: Setting(default=False, kind="bool", doc=_ADAPTIVE_DOC + (
-                      " (off by default: its reactions would trust legs through obstacles)"))},
+        Algorithm("straight_line", "straight line", "planner", _STRAIGHT_LINE,
                   _planner("StraightLinePlanner", seeded=True, module="planners.continuous"), worlds=(CONTINUOUS,)),
         Algorithm(
             "milp",

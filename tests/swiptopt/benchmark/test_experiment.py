@@ -13,7 +13,6 @@ from hypothesis import strategies as st
 
 from planners.policies import TOUR_COSTS
 from planners.tsp import METHODS
-from rl import TabularConfig
 from rl.training import BACKENDS
 from swiptopt.benchmark import plots, tables
 from swiptopt.benchmark.algorithms import ALGORITHMS, INTS, resolve_settings
@@ -122,14 +121,35 @@ def test_schema_agrees_with_what_the_algorithms_accept():
     assert set(ALGORITHMS["kmeans_tsp"].settings["tsp_method"].choices) == set(METHODS)
     for name in ("q_learning", "sarsa", "random"):
         assert set(ALGORITHMS[name].settings["backend"].choices) == set(BACKENDS)
-    # the tabular settings: same defaults, and what the schema refuses TabularConfig refuses
-    for key in ("learning_rate", "discount", "epsilon_start", "epsilon_decay", "epsilon_min", "replay_size",
-                "replay_batch"):
-        spec = ALGORITHMS["q_learning"].settings[key]
-        assert getattr(TabularConfig(), key) == spec.default
-        for value in (spec.lo - 0.1, spec.hi + 0.1) + ((spec.lo,) if spec.lo_open else ()):
-            with pytest.raises(ConfigError, match=key):
-                TabularConfig(**{key: value})
+
+
+def _declarations():
+    from planners import GreedyPlanner, LawnmowerPlanner, RewardKMeansTspPlanner
+    from planners.continuous import OmplTourPlanner, StraightLinePlanner
+    from rl.config import TABULAR_PARAMETERS
+
+    tabular = {key: TABULAR_PARAMETERS[key] for key in TABULAR_PARAMETERS}
+    return [
+        ("kmeans_tsp", RewardKMeansTspPlanner.parameters), ("lawnmower", LawnmowerPlanner.parameters),
+        ("greedy", GreedyPlanner.parameters), ("ompl_tour", OmplTourPlanner.parameters),
+        ("straight_line", StraightLinePlanner.parameters), ("q_learning", tabular), ("sarsa", tabular),
+    ]
+
+
+@pytest.mark.parametrize("name, declared", _declarations(), ids=lambda x: x if isinstance(x, str) else "")
+def test_a_registry_entry_s_settings_are_its_class_s_declarations(name, declared):
+    """Each setting is declared once, on the class that takes it; the registry reads it (a
+    copy that drifted from the class would fail here)."""
+    settings = ALGORITHMS[name].settings
+    for key, param in declared.items():
+        if key == "seed":
+            assert key not in settings  # the task's seed
+            continue
+        spec = settings[key]
+        for attribute in ("default", "kind", "lo", "hi", "lo_open", "hi_open", "choices", "optional", "unit", "doc"):
+            assert getattr(spec, attribute) == getattr(param, attribute), (name, key, attribute)
+    the_rest = set(settings) - set(declared)
+    assert the_rest <= {"train_episodes", "backend"}, the_rest  # the training loop's, the registry's own
 
 
 def test_values_are_normalised_so_equal_settings_give_equal_tasks():

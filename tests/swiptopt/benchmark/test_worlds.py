@@ -242,18 +242,6 @@ def test_compare_quick_harbour_prints_the_same_tables_with_one_worker_or_two(tmp
     assert first.count("×") == 5 * 5  # the paired table: five algorithms against the straight line
 
 
-def test_the_continuous_planners_settings_are_theirs():
-    import inspect
-
-    continuous = pytest.importorskip("planners.continuous")
-    for name, cls in (("ompl_tour", continuous.OmplTourPlanner), ("straight_line", continuous.StraightLinePlanner)):
-        parameters = inspect.signature(cls).parameters  # the class's: made from its declared parameters
-        schema = ALGORITHMS[name].settings
-        assert set(schema) == set(parameters) - {"seed"}
-        assert {key: spec.default for key, spec in schema.items()} == {key: parameters[key].default for key in schema}
-    assert ALGORITHMS["ompl_tour"].settings["ompl_legs"].choices == continuous.OMPL_LEGS
-
-
 def test_build_policy_reads_the_world_from_the_env():
     import numpy as np
 
