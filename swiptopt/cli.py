@@ -56,7 +56,7 @@ def scenario_show(spec: str) -> None:
     """Print a scenario's parameters with units, its link budget and the AUV's power."""
     from rich.console import Console
 
-    from swiptopt.benchmark.report import scenario_tables
+    from swiptopt.scenario_report import scenario_tables
 
     console = Console()
     for table in scenario_tables(load_scenario(spec)):

@@ -6,7 +6,6 @@
 - :mod:`~swiptopt.benchmark.runner`: tasks on local worker processes or a Dask cluster;
 - :mod:`~swiptopt.benchmark.store`: the crash-safe SQLite results store;
 - :mod:`~swiptopt.benchmark.tables`, :mod:`~swiptopt.benchmark.plots`: tables and figures;
-- :mod:`~swiptopt.benchmark.report`: a scenario rendered for the terminal.
 
 ``swiptopt.cli`` is its command line. Nothing here is imported by ``import swiptopt``.
 """

@@ -183,7 +183,8 @@ def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
         paths = _save(fig, outdir, "fig-coverage")
-    paths.append(_write_csv(outdir, "fig-coverage.csv", ["n_nodes", "x_m", "analytic", "simulated", "trials"], data_rows))
+    heads = ["n_nodes", "x_m", "analytic", "simulated", "trials"]
+    paths.append(_write_csv(outdir, "fig-coverage.csv", heads, data_rows))
     return paths
 
 

@@ -1,4 +1,7 @@
-"""Rich renderings of a scenario for the terminal (used by ``swiptopt scenario show``)."""
+"""A scenario rendered for the terminal as rich tables (``swiptopt scenario show``): its
+parameters with units, derived quantities, the link budget at a few distances, the uplink
+(when the scenario uses it) and the AUV's power. It reads the model only; printing is the
+CLI's."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ import numpy as np
 from rich.table import Table
 
 from swiptopt.link import (
+    LinkBudget,
     auv_power,
     harvest_split,
     link_budget,
@@ -38,22 +42,34 @@ def _fmt_obstacle(obstacle: object) -> str:
 
 
 def scenario_tables(scenario: Scenario) -> list[Table]:
-    """Parameters with units; derived quantities; the link budget; the AUV's power."""
-    params = Table(title=f"Scenario '{scenario.name}'", title_justify="left")
-    params.add_column("parameter")
-    params.add_column("value", justify="right")
-    params.add_column("unit")
-    params.add_column("meaning")
+    """Parameters with units; derived quantities; the link budget; the uplink; the AUV's power."""
+    budget = link_budget(scenario, np.asarray(BUDGET_DISTANCES_M))
+    tables = [_parameters(scenario), _derived(scenario, budget), _link(scenario, budget)]
+    if scenario.link == "uplink":
+        tables.append(_uplink(scenario, budget))
+    return [*tables, _auv(scenario)]
+
+
+def _table(title: str, columns: tuple[str, ...], right_from: int = 1) -> Table:
+    table = Table(title=title, title_justify="left")
+    for i, column in enumerate(columns):
+        table.add_column(column, justify="right" if i >= right_from else "left")
+    return table
+
+
+def _parameters(scenario: Scenario) -> Table:
+    params = _table(f"Scenario '{scenario.name}'", ("parameter", "value", "unit", "meaning"))
+    params.columns[2].justify = params.columns[3].justify = "left"
     for name, unit, doc in Scenario.field_info():
         value = getattr(scenario, name)
         params.add_row(name, "default" if value is None else _fmt(value), unit, doc)
+    return params
 
+
+def _derived(scenario: Scenario, budget: LinkBudget) -> Table:
     refs = reward_references(scenario)
-    derived = Table(title="Derived", title_justify="left")
-    derived.add_column("quantity")
-    derived.add_column("value", justify="right")
-    derived.add_column("unit")
-    budget = link_budget(scenario, np.asarray(BUDGET_DISTANCES_M))
+    derived = _table("Derived", ("quantity", "value", "unit"))
+    derived.columns[2].justify = "left"
     for label, value, unit in (
         ("grid (x, y, z cells)", " x ".join(map(str, scenario.grid_shape)), ""),
         ("start cell", str(scenario.resolved_start_cell), "cell"),
@@ -70,12 +86,13 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
         ("reward move reference E_move_ref", f"{refs.move_energy_ref_j:.6g}", "J"),
     ):
         derived.add_row(label, value, unit)
+    return derived
 
+
+def _link(scenario: Scenario, budget: LinkBudget) -> Table:
     title = f"Link budget ({scenario.link}, split ratio {harvest_split(scenario):g}, mean channel)"
-    link = Table(title=title, title_justify="left")
-    link.add_column("distance (m)", justify="right")
-    for col in ("TL (dB)", "RL (dB re 1 uPa)", "SNR (dB)", "rate (kbit/s)", "available (mW)", "harvested (mW)"):
-        link.add_column(col, justify="right")
+    link = _table(title, ("distance (m)", "TL (dB)", "RL (dB re 1 uPa)", "SNR (dB)", "rate (kbit/s)",
+                          "available (mW)", "harvested (mW)"), right_from=0)
     for i, d in enumerate(BUDGET_DISTANCES_M):
         link.add_row(
             f"{d:g}",
@@ -86,27 +103,27 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
             f"{budget.available_power_w[i] * 1e3:.4g}",
             f"{budget.harvested_power_w[i] * 1e3:.4g}",
         )
-    tables = [params, derived, link]
-    if scenario.link == "uplink":
-        up = Table(title="Uplink (each node to the AUV, mean channel)", title_justify="left")
-        for col in ("distance (m)", "SNR (dB)", "rate (kbit/s)", "packet on air (ms)", "packet (mJ)", "all data (J)"):
-            up.add_column(col, justify="right")
-        sending = budget.uplink_rate_bps > 0
-        packet = uplink_packet(scenario, np.where(sending, budget.uplink_rate_bps, 1.0))
-        packets = np.ceil(scenario.data_bits / scenario.packet_bits)
-        for i, d in enumerate(BUDGET_DISTANCES_M):
-            cells = [f"{packet.airtime_s[i] * 1e3:.4g}", f"{packet.energy_j[i] * 1e3:.4g}", f"{packets * packet.energy_j[i]:.4g}"]
-            up.add_row(
-                f"{d:g}", f"{budget.uplink_snr_db[i]:.2f}", f"{budget.uplink_rate_bps[i] / 1e3:.2f}",
-                *(cells if sending[i] else ["-"] * 3),
-            )
-        tables.append(up)
+    return link
 
+
+def _uplink(scenario: Scenario, budget: LinkBudget) -> Table:
+    up = _table("Uplink (each node to the AUV, mean channel)", ("distance (m)", "SNR (dB)", "rate (kbit/s)",
+                "packet on air (ms)", "packet (mJ)", "all data (J)"), right_from=0)
+    sending = budget.uplink_rate_bps > 0
+    packet = uplink_packet(scenario, np.where(sending, budget.uplink_rate_bps, 1.0))
+    packets = np.ceil(scenario.data_bits / scenario.packet_bits)
+    for i, d in enumerate(BUDGET_DISTANCES_M):
+        cells = [f"{packet.airtime_s[i] * 1e3:.4g}", f"{packet.energy_j[i] * 1e3:.4g}",
+                 f"{packets * packet.energy_j[i]:.4g}"]
+        up.add_row(f"{d:g}", f"{budget.uplink_snr_db[i]:.2f}", f"{budget.uplink_rate_bps[i] / 1e3:.2f}",
+                   *(cells if sending[i] else ["-"] * 3))
+    return up
+
+
+def _auv(scenario: Scenario) -> Table:
     power = auv_power(scenario)
-    auv = Table(title="AUV power (still water)", title_justify="left")
-    auv.add_column("quantity")
-    auv.add_column("value", justify="right")
-    auv.add_column("unit")
+    auv = _table("AUV power (still water)", ("quantity", "value", "unit"))
+    auv.columns[2].justify = "left"
     for label, value, unit in (
         ("propulsion power", power.propulsion_w, "W"),
         ("hotel load", power.hotel_w, "W"),
@@ -118,4 +135,4 @@ def scenario_tables(scenario: Scenario) -> list[Table]:
         ("projector energy per step", power.projector_energy_j, "J"),
     ):
         auv.add_row(label, f"{value:.4g}", unit)
-    return [*tables, auv]
+    return auv
