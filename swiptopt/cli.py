@@ -116,28 +116,38 @@ def _report_failures(console, failures) -> None:  # type: ignore[no-untyped-def]
         console.print(f"  {count} x {reason}", markup=False, highlight=False)
 
 
-_store_option = click.option(
-    "--store", "store_path", type=click.Path(dir_okay=False), default=None,
-    help="SQLite results file (default: results/swiptopt.sqlite).",
-)
-_run_options = [
-    click.option("--quick", is_flag=True, help="Shrink the experiment to a smoke test."),
-    _store_option,
-    click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores)."),
-    click.option("--scheduler", default=None, help="Dask scheduler address, or local:N for a local cluster."),
-    click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal",
-                 help="How to print the table."),
-    click.option("--output", type=click.Path(dir_okay=False), default=None, help="Also write the table to this file."),
-    click.option("--retrain", is_flag=True,
-                 help="Train every deep-RL model here instead of reusing the models shipped with swiptopt "
-                      "(models in the store's own models/ are still reused)."),
-]
+#: The options several commands share, declared once; :func:`_options` attaches them.
+_OPTIONS = {
+    "quick": click.option("--quick", is_flag=True, help="Shrink the experiments to a smoke test."),
+    "store": click.option("--store", "store_path", type=click.Path(dir_okay=False), default=None,
+                          help="SQLite results file (default: results/swiptopt.sqlite)."),
+    "workers": click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores)."),
+    "scheduler": click.option("--scheduler", default=None,
+                              help="Dask scheduler address, or local:N for a local cluster."),
+    "format": click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]),
+                           default="terminal", help="How to print the tables."),
+    "output": click.option("--output", type=click.Path(dir_okay=False), default=None,
+                           help="Also write the tables to this file."),
+    "retrain": click.option("--retrain", is_flag=True,
+                            help="Train every deep-RL model here instead of reusing the models shipped with "
+                                 "swiptopt (models in the store's own models/ are still reused)."),
+}
+#: What compare and run take: every option of a run and of its printed tables.
+_RUN_OPTIONS = ("quick", "store", "workers", "scheduler", "format", "output", "retrain")
 
 
-def _with_run_options(fn):  # type: ignore[no-untyped-def]
-    for option in reversed(_run_options):
-        fn = option(fn)
-    return fn
+def _options(*names: str):  # type: ignore[no-untyped-def]
+    """Attach the shared options ``names`` (:data:`_OPTIONS`), in that order."""
+
+    def attach(fn):  # type: ignore[no-untyped-def]
+        for name in reversed(names):
+            fn = _OPTIONS[name](fn)
+        return fn
+
+    return attach
+
+
+_with_run_options = _options(*_RUN_OPTIONS)
 
 
 _allow_plugins_option = click.option(
@@ -357,24 +367,21 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # ty
 
 @cli.command()
 @click.argument("what", type=click.Choice(["paper", "learning-curve"]))
-@click.option("--quick", is_flag=True, help="Shrink every experiment to a smoke test.")
-@_store_option
-@click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores).")
-@click.option("--scheduler", default=None, help="Dask scheduler address, or local:N.")
+@_options("quick", "store", "workers", "scheduler")
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures", help="Where figures and data go.")
 @click.option(
     "--link", type=click.Choice(["downlink_split", "uplink"]), default=None,
     help="Run every figure on this data link (default: the paper preset's, downlink_split); "
     "uplink experiments are named with an -uplink suffix.",
 )
-@click.option("--retrain", is_flag=True, help="Train every deep-RL model here instead of reusing the shipped ones.")
+@_options("retrain")
 def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain) -> None:  # type: ignore[no-untyped-def]
     """Run every experiment of the paper's figures (``paper``) or the learning curves
     (``learning-curve``) and write the figures and their data.
 
     The paper's data figures run with the reward weight Gamma = 1 (throughput only), its
     energy figures with Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes
-    (Section V). ``learning-curve`` writes ``fig-learning-curve`` (return against budget,
+    (Section IV). ``learning-curve`` writes ``fig-learning-curve`` (return against budget,
     the planners as bands) and prints the curves' table."""
     from rich.console import Console
 
@@ -427,8 +434,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 @cli.command()
 @click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
 @click.option("--experiment", "name", default=None, help="Only this experiment (default: every one in the store).")
-@click.option("--format", "fmt", type=click.Choice(["terminal", "markdown", "csv", "latex"]), default="terminal")
-@click.option("--output", type=click.Path(dir_okay=False), default=None)
+@_options("format", "output")
 def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def]
     """Print the tables of the experiments recorded in a results store (from the stored
     data alone: no plugin is loaded; a plugin's rows are labelled by its name)."""
@@ -481,7 +487,7 @@ def models() -> None:
 @click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
 @click.option("--experiment", "names", multiple=True, metavar="NAME|FILE.toml",
               help="Only the models of these experiments' tasks (repeatable; default: every task's).")
-@click.option("--quick", is_flag=True, help="The experiments' --quick tasks.")
+@_options("quick")
 @click.option("--to", "outdir", type=click.Path(file_okay=False), required=True,
               help="The directory to copy them to (its manifest.json records each file's SHA-256).")
 @_allow_plugins_option

@@ -938,17 +938,18 @@ def builtin_experiments() -> dict[str, Experiment]:
     }
 
 
-#: The paper's reward-weight extremes (l. 817: "only values of eta = 1 and eta = 0 ...
-#: These values represent the extreme ends of the reward function"): its data figures
-#: weigh throughput only (Gamma = 1 in eq. 23), its energy figures harvesting only
-#: (Gamma = 0) with all of the received power sent to the harvester (alpha = 0, l. 963).
-#: l. 817 names the weight eta and pairs 1 with harvesting; eq. 23 pairs Gamma = 1 with
+#: The paper's reward-weight extremes (Section IV, on Fig. 6: "only values of eta = 1 and
+#: eta = 0 ... These values represent the extreme ends of the reward function"): its data
+#: figures weigh throughput only (Gamma = 1 in eq. 23), its energy figures harvesting only
+#: (Gamma = 0) with all of the received power sent to the harvester (alpha = 0, Section IV,
+#: on Fig. 10).
+#: Section IV names the weight eta and pairs 1 with harvesting; eq. 23 pairs Gamma = 1 with
 #: throughput, and we follow the equation.
 PAPER_DATA_WEIGHT = {"reward_weight": 1.0}
 PAPER_ENERGY_WEIGHT = {"reward_weight": 0.0, "split_ratio": 0.0}
 
-#: Each reading of the paper's energy efficiency (l. 936-941) as a figure of its own; the
-#: four share their tasks (a task's key does not include the experiment's name).
+#: Each reading of the paper's energy efficiency (Section IV, on Fig. 9) as a figure of its
+#: own; the four share their tasks (a task's key does not include the experiment's name).
 EFFICIENCY_FIGURES = {
     "fig-efficiency-vs-nodes": ("energy_efficiency_bit_per_j", "projector counted while it serves"),
     "fig-efficiency-always-on-vs-nodes": ("energy_efficiency_always_on_bit_per_j", "projector counted every step"),

@@ -22,7 +22,7 @@ What can go wrong, and what happens then:
   (:mod:`swiptopt.benchmark.processes`).
 
 Trained deep-RL models are kept beside the store, in ``<store's directory>/models/``, as
-Stable-Baselines3 zips named by the hash of their training configuration
+weights files (data, never pickles) named by the hash of their training configuration
 (:func:`rl.deep.train_or_load_deep`): a task whose model is there loads it instead of
 training, so a second run (or another experiment with the same training) trains nothing. A
 model trained across layouts serves every task of its training seed; the runner starts one
@@ -85,7 +85,7 @@ MODELS_DIR = "models_dir"
 #: The directory, beside the store, that holds trained models.
 MODELS_SUBDIR = "models"
 #: The models shipped with swiptopt (the deep-RL models of ``compare``), each vouched for by
-#: the directory's manifest; ``--retrain`` leaves them out (its README says how they were made).
+#: the directory's manifest; ``--retrain`` leaves them out (docs/deep-rl.md says how they were made).
 PRETRAINED_DIR = Path(__file__).resolve().parent / "pretrained"
 
 
