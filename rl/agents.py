@@ -18,9 +18,8 @@ import numpy as np
 from rl import core
 from rl.config import TabularConfig
 from swiptopt.errors import ConfigError
+from swiptopt.kernel import N_ACTIONS
 from swiptopt.validation import Spec, check_value
-
-N_ACTIONS = 7
 
 #: What ``n_states`` and ``n_actions`` may hold (:func:`swiptopt.validation.check_value`).
 TABLE_SIZE = Spec(kind="int", lo=1, strict=True, doc="rows or columns of the Q-table")

@@ -10,11 +10,10 @@ from rl.agents import make_agent
 from rl.config import TabularConfig
 from rl.training import TrainingLog, train
 from swiptopt.env import AuvSwiptEnv
-from swiptopt.evaluation import EvaluationResult, evaluate
+from swiptopt.evaluation import EVALUATION_SEED_OFFSET, EvaluationResult, evaluate
 from swiptopt.scenario import Scenario
 
 #: Evaluation seeds start here, far from the training seeds of any sweep.
-EVALUATION_SEED_OFFSET = 1_000_003
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,6 +21,10 @@ from swiptopt.errors import ConfigError
 from swiptopt.metrics import EPISODE_METRICS
 from swiptopt.validation import Spec, check_value
 
+#: Evaluation episodes are seeded from ``seed + EVALUATION_SEED_OFFSET`` (the benchmark's
+#: tasks and :func:`rl.protocol.train_and_evaluate` alike), seeds that training never uses.
+EVALUATION_SEED_OFFSET = 1_000_003
+
 
 @runtime_checkable
 class Policy(Protocol):

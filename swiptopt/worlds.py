@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 from swiptopt import CONTINUOUS_ENV_ID, ENV_ID
+from swiptopt.env import OBSERVATIONS as GRID_OBSERVATIONS
 from swiptopt.errors import ConfigError, did_you_mean
 
 GRID = "grid"
@@ -23,7 +24,7 @@ WORLDS = (GRID, CONTINUOUS)
 #: The Gymnasium id of each world's environment.
 ENV_IDS = {GRID: ENV_ID, CONTINUOUS: CONTINUOUS_ENV_ID}
 #: The observations each world's environment offers (its default first).
-OBSERVATIONS = {GRID: ("tabular", "vector"), CONTINUOUS: ("vector",)}
+OBSERVATIONS = {GRID: GRID_OBSERVATIONS, CONTINUOUS: ("vector",)}
 
 
 def check_world(value: Any, where: str = "world") -> str:

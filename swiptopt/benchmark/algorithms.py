@@ -67,6 +67,7 @@ from swiptopt.errors import ConfigError, did_you_mean
 from swiptopt.limits import check_size, limits, training_log_note
 from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.worlds import CONTINUOUS, GRID, WORLDS
+from swiptopt.worlds import OBSERVATIONS as WORLD_OBSERVATIONS
 
 
 @dataclass(frozen=True)
@@ -688,7 +689,7 @@ FACTORY_PATTERN = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Z
 #: An algorithm's name: it names table rows and settings keys.
 NAME_PATTERN = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
 #: Where each observation comes from, for the error that names the valid choices.
-OBSERVATIONS = ("tabular", "vector")
+OBSERVATIONS = WORLD_OBSERVATIONS[GRID]
 
 #: Algorithms registered from outside the project, by name, with the factory they came from.
 _PLUGINS: dict[str, tuple[str, Algorithm]] = {}

@@ -117,8 +117,6 @@ from swiptopt.tomlfile import read_toml
 from swiptopt.validation import Spec, check_keys, check_value
 from swiptopt.worlds import CONTINUOUS, GRID, check_world
 
-#: Evaluation seeds of a task start this far from its training seed.
-EVALUATION_OFFSET = 1_000_003
 #: Task seeds of one layout: layout L's tasks have seeds SEEDS_PER_LAYOUT * L + 0, 1, ...
 SEEDS_PER_LAYOUT = 1000
 

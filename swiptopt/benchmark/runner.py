@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from swiptopt.benchmark.experiment import EVALUATION_OFFSET, Experiment, Task
+from swiptopt.benchmark.experiment import Experiment, Task
 from swiptopt.benchmark.processes import (
     die_with_parent,
     import_modules,
@@ -63,6 +63,7 @@ from swiptopt.benchmark.processes import (
 )
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.errors import ConfigError
+from swiptopt.evaluation import EVALUATION_SEED_OFFSET
 from swiptopt.fpmath import pin_torch_cpu_paths
 
 #: Modules with the native libraries of each algorithm family: imported before the thread
@@ -141,7 +142,7 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     training = tuple(t.training_layouts) if t.training_layouts is not None else None
     context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world, checkpoints, pretrained)
     policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
-    result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_OFFSET)
+    result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_SEED_OFFSET)
     extra: dict[str, Any] = task_extra(t.algorithm, policy, env)
     if grid:
         # the bound counts the nodes coverable from the grid's cells: in the continuous world a
