@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import swiptopt
-from planners.policies import Plan, Stop, _Executor
+from planners.policies import Plan, Stop, PlanExecutor
 from planners.stops import (
     DWELLS,
     ContinuousStopChoiceEnv,
@@ -186,7 +186,7 @@ def test_a_fixed_dwell_takes_the_moves_plus_the_dwell_and_never_overruns_the_epi
 
 
 def test_the_moves_to_a_stop_are_the_planners_executors():
-    class OneStop(_Executor):
+    class OneStop(PlanExecutor):
         def __init__(self, cell, steps):
             super().__init__(linger_steps=0)
             self.stop = Stop(cell, steps)
