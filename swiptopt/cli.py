@@ -366,7 +366,7 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # ty
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["paper", "learning-curve"]))
+@click.argument("what", type=click.Choice(["paper", "learning-curve", "links"]))
 @_options("quick", "store", "workers", "scheduler")
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures", help="Where figures and data go.")
 @click.option(
@@ -377,12 +377,14 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # ty
 @_options("retrain")
 def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain) -> None:  # type: ignore[no-untyped-def]
     """Run every experiment of the paper's figures (``paper``) or the learning curves
-    (``learning-curve``) and write the figures and their data.
+    (``learning-curve``), or draw the link technologies (``links``), and write the figures
+    and their data.
 
     The paper's data figures run with the reward weight Gamma = 1 (throughput only), its
     energy figures with Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes
     (Section IV). ``learning-curve`` writes ``fig-learning-curve`` (return against budget,
-    the planners as bands) and prints the curves' table."""
+    the planners as bands) and prints the curves' table. ``links`` writes ``fig-links``
+    (SNR, rate and harvested power against distance for each technology; no task runs)."""
     from rich.console import Console
 
     from swiptopt.benchmark import plots, tables
@@ -394,6 +396,9 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
     check_run_options(workers, scheduler)
     console = Console(stderr=True)
     failures = []
+    if what == "links":
+        console.print(", ".join(map(str, plots.links_figure(outdir))))
+        return
     if what == "learning-curve":
         from swiptopt.benchmark.experiment import load_experiments
 

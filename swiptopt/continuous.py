@@ -148,6 +148,13 @@ class World:
 
 def build_world(scenario: Scenario) -> World:
     """The continuous world's arrays for ``scenario`` (its layout included)."""
+    if scenario.technology != "acoustic":
+        from swiptopt.errors import ConfigError
+
+        raise ConfigError(
+            f"technology = {scenario.technology!r} runs in the grid world only: the continuous world's "
+            "compiled link is the acoustic one", "technology",
+        )
     tables_params = K.scalar_params(scenario)
     top = np.asarray(scenario.current_mps, dtype=float)
     bottom = top if scenario.current_bottom_mps is None else np.asarray(scenario.current_bottom_mps, dtype=float)

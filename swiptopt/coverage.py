@@ -29,24 +29,35 @@ def cone_mask(
     node_positions_m: ArrayLike,
     half_angle_deg: float,
     range_m: float,
+    omnidirectional: bool = False,
 ) -> np.ndarray:
     """Geometric coverage, (P, N) bool, for AUV positions (P, 3) and nodes (N, 3).
 
     True where the node is strictly below the AUV, within the cone's half-angle of the
-    vertical and within ``range_m`` slant distance.
+    vertical and within ``range_m`` slant distance (``omnidirectional``: within the range,
+    in any direction).
     """
     auv = np.asarray(auv_positions_m, dtype=float).reshape(-1, 3)[:, None, :]
     nodes = np.asarray(node_positions_m, dtype=float).reshape(-1, 3)[None, :, :]
-    return _in_cone(nodes - auv, half_angle_deg, range_m)
+    return _in_cone(nodes - auv, half_angle_deg, range_m, omnidirectional)
 
 
-def _in_cone(rel_m: np.ndarray, half_angle_deg: float, range_m: float) -> np.ndarray:
+def _in_cone(rel_m: np.ndarray, half_angle_deg: float, range_m: float, omnidirectional: bool = False) -> np.ndarray:
     """The cone test on node-minus-AUV vectors (..., 3): one elementwise formula for every
-    caller, so a pair gets the same answer however the pairs are batched."""
+    caller, so a pair gets the same answer however the pairs are batched. An
+    ``omnidirectional`` link (magnetic induction: no beam) reaches every direction within
+    the range."""
     dz = rel_m[..., 2]
     horizontal = np.hypot(rel_m[..., 0], rel_m[..., 1])
     slant = np.sqrt(horizontal**2 + dz**2)
+    if omnidirectional:
+        return slant <= range_m
     return (dz > 0) & (horizontal <= dz * math.tan(math.radians(half_angle_deg))) & (slant <= range_m)
+
+
+def is_omnidirectional(scenario: Scenario) -> bool:
+    """Whether the scenario's link reaches every direction (magnetic induction), not a cone."""
+    return scenario.technology == "magnetic_induction"
 
 
 def slant_distances_m(auv_positions_m: ArrayLike, node_positions_m: ArrayLike) -> np.ndarray:
@@ -93,7 +104,8 @@ def covered_pairs(
     block = max(1, int(pairs_per_block) // max(1, nodes.shape[0]))
     rows, cols, dist = [], [], []
     for lo in range(0, auv.shape[0], block):
-        inside = cone_mask(auv[lo : lo + block], nodes, scenario.cone_half_angle_deg, scenario.cone_range_m)
+        inside = cone_mask(auv[lo : lo + block], nodes, scenario.cone_half_angle_deg, scenario.cone_range_m,
+                           is_omnidirectional(scenario))
         r, c = np.nonzero(inside)
         # the same arithmetic as slant_distances_m, on the pairs in the cone only
         d = np.linalg.norm(nodes[c] - auv[lo + r], axis=-1)
@@ -144,11 +156,13 @@ def cell_coverage(scenario: Scenario, *, pairs_per_block: int = PAIRS_PER_BLOCK)
     reach_m = scenario.cone_range_m
     slack = 1.0 + 1e-9
 
+    omni = is_omnidirectional(scenario)
     layer_z = (np.arange(nz) + 0.5) * c  # as in cell_centers_m
     dz = nodes[:, 2, None] - layer_z[None, :]  # (N, nz)
     with np.errstate(invalid="ignore"):
-        radius = np.minimum(dz * tan, np.sqrt(np.maximum(reach_m**2 - dz**2, 0.0))) * slack + 1e-9 * c
-    usable = (dz > 0) & (dz <= reach_m * slack)
+        sphere = np.sqrt(np.maximum(reach_m**2 - dz**2, 0.0))
+        radius = (sphere if omni else np.minimum(dz * tan, sphere)) * slack + 1e-9 * c
+    usable = (np.abs(dz) <= reach_m * slack) if omni else (dz > 0) & (dz <= reach_m * slack)
 
     def cell_range(coord: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
         lo = np.clip(np.ceil((coord[:, None] - radius) / c - 0.5), 0, n_cells - 1).astype(np.int64)
@@ -178,7 +192,7 @@ def cell_coverage(scenario: Scenario, *, pairs_per_block: int = PAIRS_PER_BLOCK)
         free = ~blocked[cell]
         cell, node = cell[free], node[free]
         rel = nodes[node] - centres[cell]
-        inside = _in_cone(rel, scenario.cone_half_angle_deg, reach_m)
+        inside = _in_cone(rel, scenario.cone_half_angle_deg, reach_m, omni)
         cell, node = cell[inside], node[inside]
         d = np.linalg.norm(rel[inside], axis=-1)  # as slant_distances_m
         ok = link_budget(scenario, d).in_service
@@ -227,7 +241,9 @@ def coverage_fraction(
     rng: np.random.Generator | int | None = None,
     n_samples: int = 200_000,
 ) -> CoverageFraction:
-    """p = V(covered free water) / V(free water) for a single position (3,)."""
+    """p = V(covered free water) / V(free water) for a single position (3,) (the paper's
+    analysis of the downward cone; an omnidirectional link's reach is a ball, always
+    integrated by Monte Carlo)."""
     pos = np.asarray(position_m, dtype=float)
     reach = service_range_m(scenario)
     half = scenario.cone_half_angle_deg
@@ -241,12 +257,12 @@ def coverage_fraction(
         and pos[1] - widest >= 0
         and pos[1] + widest <= scenario.width_m
     )
-    if inside and not scenario.obstacles and scenario.seabed_height_m is None:
+    if inside and not scenario.obstacles and scenario.seabed_height_m is None and not is_omnidirectional(scenario):
         volume = cone_volume_m3(below, half, reach)
         return CoverageFraction(float(volume / np.prod(scenario.extent_m)), "analytic", 0.0)
     gen = np.random.default_rng(rng)
     points = _uniform_free_points(scenario, n_samples, gen)
-    hit = cone_mask(pos, points, half, reach)[0]
+    hit = cone_mask(pos, points, half, reach, is_omnidirectional(scenario))[0]
     p = float(hit.mean())
     return CoverageFraction(p, "monte-carlo", math.sqrt(max(p * (1 - p), 1e-300) / n_samples))
 

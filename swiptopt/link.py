@@ -8,12 +8,13 @@ the equations, not one per caller.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from swiptopt import acoustics, auv, harvesting
+from swiptopt import acoustics, auv, harvesting, magnetic, optical
 from swiptopt.scenario import Scenario
 
 #: Distance of the on-axis reference link that defines the energy reward reference, m.
@@ -128,6 +129,8 @@ def link_budget(
         split_ratio = harvest_split(scenario)
     alpha = split_ratio
     d = np.asarray(distance_m, dtype=float)
+    if scenario.technology != "acoustic":
+        return _light_or_field_budget(scenario, d, alpha)
     sl = source_level_db(scenario)
     nl = noise_level_db(scenario)
     tl = acoustics.transmission_loss_db(d, scenario.frequency_khz, scenario.spreading_k)
@@ -145,6 +148,69 @@ def link_budget(
         0.0,
     )
     return LinkBudget(d, sl, nl, tl, rl, snr, ok, rate, p_av, p_h, snr_up, rate_up)
+
+
+def optical_constants(scenario: Scenario) -> optical.OpticalConstants:
+    """The optical link's constants of the scenario (docs/links.md): its source, the water
+    type's attenuation, a beam as wide as the coverage cone, the node's receiver."""
+    return optical.constants(
+        transmit_power_w=scenario.optical_power_w,
+        attenuation_per_m=optical.WATER_ATTENUATION_PER_M[scenario.water_type],
+        aperture_m2=scenario.receiver_aperture_m2,
+        half_angle_deg=scenario.cone_half_angle_deg,
+        responsivity_a_per_w=scenario.responsivity_a_per_w,
+        dark_current_a=scenario.dark_current_a,
+        background_irradiance_w_m2=scenario.background_irradiance_w_m2,
+        bandwidth_hz=scenario.optical_bandwidth_hz,
+        load_ohm=scenario.photodiode_load_ohm,
+        pv_efficiency=scenario.pv_efficiency,
+    )
+
+
+def magnetic_constants(scenario: Scenario) -> magnetic.MagneticConstants:
+    """The MI link's constants of the scenario (docs/links.md): equal coils on the AUV and
+    the nodes, resonant at ``mi_frequency_khz``, in water of the given conductivity."""
+    return magnetic.constants(
+        transmit_power_w=scenario.mi_transmit_power_w,
+        freq_khz=scenario.mi_frequency_khz,
+        conductivity_s_per_m=scenario.seawater_conductivity_s_per_m,
+        radius_tx_m=scenario.coil_radius_m,
+        radius_rx_m=scenario.coil_radius_m,
+        turns_tx=scenario.coil_turns,
+        turns_rx=scenario.coil_turns,
+        wire_ohm_per_m=scenario.coil_wire_ohm_per_m,
+        bandwidth_hz=scenario.mi_bandwidth_hz,
+        noise_figure_db=scenario.mi_noise_figure_db,
+    )
+
+
+def _light_or_field_budget(scenario: Scenario, d: np.ndarray, alpha: ArrayLike) -> LinkBudget:
+    """:func:`link_budget` of the optical or the MI link: the same quantities from the
+    technology's SNR and available power (the acoustic levels are NaN; no uplink)."""
+    if scenario.technology == "optical":
+        light = optical.link(d, optical_constants(scenario))
+        snr, p_av = light.snr_db, light.available_power_w
+    else:
+        field_ = magnetic.link(d, magnetic_constants(scenario))
+        snr, p_av = field_.snr_db, field_.received_power_w
+    ok = snr >= scenario.snr_threshold_db
+    info_snr = harvesting.information_snr_linear(acoustics.db_to_linear(snr), alpha)
+    rate = np.where(ok, acoustics.shannon_rate_bps(scenario.bandwidth_hz, info_snr), 0.0)
+    p_h = np.where(ok, harvested_power_w(scenario, p_av, alpha), 0.0)
+    nan = np.full(d.shape, np.nan)
+    return LinkBudget(d, math.nan, math.nan, nan, nan, snr, ok, rate, np.asarray(p_av, dtype=float), p_h,
+                      np.full(d.shape, -np.inf), np.zeros(d.shape))
+
+
+def transmit_power_w(scenario: Scenario) -> float:
+    """The electrical power the AUV's transmitter draws while it serves a node, W: the
+    acoustic projector's ``electrical_power_w``, the optical source's light over its
+    wall-plug efficiency, or the MI driver's power."""
+    if scenario.technology == "optical":
+        return scenario.optical_power_w / scenario.optical_wallplug_efficiency
+    if scenario.technology == "magnetic_induction":
+        return float(scenario.mi_transmit_power_w)
+    return float(scenario.electrical_power_w)
 
 
 def harvest_split(scenario: Scenario) -> float:
@@ -218,15 +284,16 @@ def auv_power(scenario: Scenario) -> AuvPower:
         )
     )
     dt = scenario.step_duration_s
+    transmit_w = transmit_power_w(scenario)
     return AuvPower(
         propulsion_w=p_prop,
         hotel_w=scenario.hotel_power_w,
-        projector_w=scenario.electrical_power_w,
+        projector_w=transmit_w,
         move_energy_j=float(
             auv.move_energy_j(scenario.cell_size_m, scenario.speed_mps, p_prop, scenario.hotel_power_w)
         ),
         hover_energy_j=float(auv.hover_energy_j(dt, scenario.hotel_power_w, scenario.station_keeping_power_w)),
-        projector_energy_j=scenario.electrical_power_w * dt,
+        projector_energy_j=transmit_w * dt,
     )
 
 
@@ -246,7 +313,12 @@ def reward_references(scenario: Scenario) -> RewardReferences:
     ``energy_ref_j`` is what one node harvests in one step on the cone axis at
     :data:`REFERENCE_DISTANCE_M` with the whole signal sent to the harvester (alpha = 0):
     independent of ``split_ratio``, so rewards stay comparable across a split-ratio sweep.
+    Every link technology takes the acoustic link's reference, so that rewards stay
+    comparable across technologies too (an optical or MI node harvests orders of magnitude
+    less, and its reward says so).
     """
+    if scenario.technology != "acoustic":  # the references do not depend on the link but through E_ref
+        return reward_references(scenario.replace(technology="acoustic"))
     data_ref = scenario.data_ref_bits if scenario.data_ref_bits is not None else scenario.data_bits
     if scenario.energy_ref_j is not None:
         energy_ref = scenario.energy_ref_j

@@ -137,6 +137,12 @@ def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
 
 
 CHANNELS = ("none", "shadowing", "rician")
+#: The signalling technology of the AUV-node link (docs/links.md): the paper's acoustic link,
+#: underwater optical (UWOC) or magnetic induction (MI).
+TECHNOLOGIES = ("acoustic", "optical", "magnetic_induction")
+#: Water types of the optical link, with their beam attenuation near 530 nm
+#: (:data:`swiptopt.optical.WATER_ATTENUATION_PER_M`).
+WATER_TYPES = ("pure_sea", "clear_ocean", "coastal", "turbid_harbour")
 HARVESTERS = ("linear", "logistic")
 #: Which signal carries the data: the AUV's, power-split at the node, or the
 #: node's own transmission to the AUV (the paper's eq. 13, SNR with the node's power P_i).
@@ -227,6 +233,51 @@ class Scenario:
     logistic_a_per_w: float = _field(150.0, "1/W", "logistic harvester steepness a", lo=0, lo_open=True, hi=1e9)
     logistic_b_w: float = _field(0.014, "W", "logistic harvester turning point b", lo=0, hi=1e6)
 
+    # link technology (docs/links.md); the optical and MI fields matter only for theirs
+    technology: str = _field(
+        "acoustic", "", "link technology: 'acoustic' (the paper's), 'optical' (UWOC) or 'magnetic_induction'",
+        kind="str", choices=TECHNOLOGIES,
+    )
+    water_type: str = _field(
+        "clear_ocean", "", "optical: water type, for its beam attenuation near 530 nm (Petzold)", kind="str",
+        choices=WATER_TYPES,
+    )
+    optical_power_w: float = _field(1.0, "W", "optical: light power the AUV's source emits", lo=0, lo_open=True, hi=1e4)
+    optical_wallplug_efficiency: float = _field(
+        0.3, "", "optical: electrical-to-optical efficiency of the source", lo=0, lo_open=True, hi=1
+    )
+    receiver_aperture_m2: float = _field(
+        0.01, "m^2", "optical: the node's receiver aperture (photodiode and photovoltaic panel)", lo=0, lo_open=True,
+        hi=10,
+    )
+    responsivity_a_per_w: float = _field(0.4, "A/W", "optical: photodiode responsivity", lo=0, lo_open=True, hi=10)
+    dark_current_a: float = _field(1e-9, "A", "optical: photodiode dark current", lo=0, hi=1)
+    background_irradiance_w_m2: float = _field(
+        0.01, "W/m^2", "optical: ambient light on the receiver (depth and daylight)", lo=0, hi=2000
+    )
+    photodiode_load_ohm: float = _field(
+        1000.0, "ohm", "optical: the receiver's load (its thermal noise)", lo=0, lo_open=True, hi=1e9
+    )
+    pv_efficiency: float = _field(
+        0.15, "", "optical: photovoltaic conversion efficiency of the node's panel", lo=0, lo_open=True, hi=1
+    )
+    optical_bandwidth_hz: float = _field(1e6, "Hz", "optical: signal bandwidth", lo=1, hi=1e10)
+    mi_frequency_khz: float = _field(10.0, "kHz", "MI: resonant frequency of the coils", lo=0.1, hi=10_000)
+    coil_radius_m: float = _field(0.15, "m", "MI: radius of the AUV's and the nodes' coils", lo=0, lo_open=True, hi=10)
+    coil_turns: int = _field(20, "", "MI: turns of each coil", lo=1, hi=100_000, kind="int")
+    coil_wire_ohm_per_m: float = _field(
+        0.017, "ohm/m", "MI: resistance of the coils' wire per metre", lo=0, lo_open=True, hi=100
+    )
+    seawater_conductivity_s_per_m: float = _field(
+        4.0, "S/m", "MI: the water's conductivity (seawater about 4; fresh water about 0.01)", lo=0, lo_open=True,
+        hi=100,
+    )
+    mi_transmit_power_w: float = _field(
+        10.0, "W", "MI: power the AUV's driver delivers to its coil", lo=0, lo_open=True, hi=1e5
+    )
+    mi_noise_figure_db: float = _field(6.0, "dB", "MI: receiver noise figure", lo=0, hi=40)
+    mi_bandwidth_hz: float = _field(2000.0, "Hz", "MI: signal bandwidth", lo=1, hi=1e7)
+
     # coverage cone
     cone_half_angle_deg: float = _field(
         30.0, "deg", "half-angle of the downward coverage cone", lo=0, lo_open=True, hi=90, hi_open=True
@@ -289,6 +340,14 @@ class Scenario:
             spec: Spec = f.metadata["spec"]
             object.__setattr__(self, f.name, _check_field(f.name, getattr(self, f.name), spec))
         self._check_relations()
+        self._check_link()
+
+    def _check_link(self) -> None:
+        if self.technology != "acoustic" and self.link != "downlink_split":
+            raise ScenarioError(
+                f"link = {self.link!r} is modelled for the acoustic link only: with technology = "
+                f"{self.technology!r} use link = 'downlink_split'", "link",
+            )
 
     def _check_relations(self) -> None:
         for axis in ("length_m", "width_m", "depth_m"):
@@ -360,7 +419,8 @@ class Scenario:
 
     @classmethod
     def preset(cls, preset: str, /, **overrides: Any) -> Scenario:
-        """A named preset (``paper``, ``paper-table1``, ``harbour``, ``tiny``) with field overrides.
+        """A named preset (``paper``, ``paper-table1``, ``paper-optical``, ``paper-mi``,
+        ``harbour``, ``tiny``) with field overrides.
 
         The scenario's ``name`` is the preset's unless ``name=`` gives a label of its own.
         """
@@ -401,11 +461,13 @@ class Scenario:
             raise ScenarioError(f"{path}: {exc}", exc.field) from None
 
     def to_dict(self) -> dict[str, Any]:
-        """Every field as plain TOML-compatible values (``None`` fields omitted)."""
+        """Every field as plain TOML-compatible values (``None`` fields omitted, and the link
+        technology's fields when they hold their defaults: a scenario that uses none of them
+        reads, and hashes, as it did before they existed)."""
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value is None:
+            if value is None or (f.name in TECHNOLOGY_FIELDS and value == f.default):
                 continue
             if f.name == "obstacles":
                 value = [_obstacle_to_mapping(o) for o in value]
@@ -451,6 +513,12 @@ class Scenario:
 
     @property
     def bandwidth_hz(self) -> float:
+        """The signal bandwidth B of the scenario's link technology, Hz: the acoustic band
+        (``band_max_khz - band_min_khz``), or the optical or MI bandwidth."""
+        if self.technology == "optical":
+            return float(self.optical_bandwidth_hz)
+        if self.technology == "magnetic_induction":
+            return float(self.mi_bandwidth_hz)
         return (self.band_max_khz - self.band_min_khz) * 1000.0
 
     @property
@@ -612,6 +680,13 @@ def _check_field(name: str, value: Any, spec: Spec) -> Any:
 #: ``harbour`` adds obstacles, a sloping seabed and a tidal current, where path planning
 #: matters; ``tiny`` is a deterministic instance (no fading, no link failures, a wide beam)
 #: small enough for an exact optimum.
+#: The fields of the link technologies, which a scenario's dict holds only when they differ
+#: from their defaults (:meth:`Scenario.to_dict`).
+TECHNOLOGY_FIELDS = frozenset(
+    f.name for f in dataclasses.fields(Scenario)
+    if f.name == "technology" or f.metadata["spec"].doc.startswith(("optical:", "MI:"))
+)
+
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
     # Table I literally, where it gives a value; docs/paper-fidelity.md, 'Item by item' has
@@ -659,6 +734,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         # the seabed rises towards the quay at x = 0
         "seabed_height_m": ((12.0, 12.0, 12.0), (4.0, 4.0, 4.0), (0.0, 0.0, 0.0)),
     },
+    # the paper preset's network served by the other link technologies (docs/links.md)
+    "paper-optical": {"technology": "optical"},
+    "paper-mi": {"technology": "magnetic_induction"},
     "tiny": {
         "length_m": 30.0,
         "width_m": 30.0,

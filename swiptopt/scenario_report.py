@@ -15,15 +15,18 @@ from swiptopt.link import (
     auv_power,
     harvest_split,
     link_budget,
+    magnetic_constants,
     node_source_level_db,
+    optical_constants,
     reward_references,
     service_range_m,
+    transmit_power_w,
     uplink_packet,
 )
 from swiptopt.scenario import Scenario
 
-#: Distances of the link-budget table, m.
-BUDGET_DISTANCES_M = (10.0, 30.0, 50.0)
+#: Distances of the link-budget table, m (short ones for the optical and MI links' reach).
+BUDGET_DISTANCES_M = (2.0, 5.0, 10.0, 30.0, 50.0)
 
 
 def _fmt(value: object) -> str:
@@ -75,11 +78,11 @@ def _derived(scenario: Scenario, budget: LinkBudget) -> Table:
         ("start cell", str(scenario.resolved_start_cell), "cell"),
         ("blocked cells", str(int(scenario.blocked_cells.sum())), ""),
         ("step duration", f"{scenario.step_duration_s:.4g}", "s"),
+        ("link technology", scenario.technology, ""),
         ("bandwidth", f"{scenario.bandwidth_hz:.6g}", "Hz"),
-        ("source level SL", f"{budget.source_level_db:.2f}", "dB re 1 uPa @ 1 m"),
-        ("noise level NL", f"{budget.noise_level_db:.2f}", "dB re 1 uPa"),
+        *_technology_rows(scenario, budget),
         ("data link", scenario.link, ""),
-        ("node source level (uplink)", f"{node_source_level_db(scenario):.2f}", "dB re 1 uPa @ 1 m"),
+        ("transmitter draw while serving", f"{transmit_power_w(scenario):.4g}", "W"),
         ("service range (cone or SNR)", f"{service_range_m(scenario):.4g}", "m"),
         ("reward data reference D_ref", f"{refs.data_ref_bits:.6g}", "bit"),
         ("reward energy reference E_ref", f"{refs.energy_ref_j:.6g}", "J"),
@@ -89,15 +92,35 @@ def _derived(scenario: Scenario, budget: LinkBudget) -> Table:
     return derived
 
 
+def _technology_rows(scenario: Scenario, budget: LinkBudget) -> list[tuple[str, str, str]]:
+    """The derived quantities of the scenario's link technology."""
+    if scenario.technology == "optical":
+        k = optical_constants(scenario)
+        return [("water type", scenario.water_type, ""),
+                ("beam attenuation c", f"{k.attenuation_per_m:.4g}", "1/m"),
+                ("aperture over beam solid angle A/Omega", f"{k.aperture_per_sr_m2:.4g}", "m^2/sr")]
+    if scenario.technology == "magnetic_induction":
+        k = magnetic_constants(scenario)
+        return [("skin depth delta", f"{k.skin_depth_m:.4g}", "m"),
+                ("receiver noise k T B F", f"{k.noise_w:.4g}", "W")]
+    return [("source level SL", f"{budget.source_level_db:.2f}", "dB re 1 uPa @ 1 m"),
+            ("noise level NL", f"{budget.noise_level_db:.2f}", "dB re 1 uPa"),
+            ("node source level (uplink)", f"{node_source_level_db(scenario):.2f}", "dB re 1 uPa @ 1 m")]
+
+
 def _link(scenario: Scenario, budget: LinkBudget) -> Table:
-    title = f"Link budget ({scenario.link}, split ratio {harvest_split(scenario):g}, mean channel)"
-    link = _table(title, ("distance (m)", "TL (dB)", "RL (dB re 1 uPa)", "SNR (dB)", "rate (kbit/s)",
-                          "available (mW)", "harvested (mW)"), right_from=0)
+    title = (f"Link budget ({scenario.technology}, {scenario.link}, split ratio {harvest_split(scenario):g}, "
+             "mean channel)")
+    acoustic = scenario.technology == "acoustic"
+    levels = ("TL (dB)", "RL (dB re 1 uPa)") if acoustic else ()
+    link = _table(title, ("distance (m)", *levels, "SNR (dB)", "rate (kbit/s)", "available (mW)", "harvested (mW)"),
+                  right_from=0)
     for i, d in enumerate(BUDGET_DISTANCES_M):
+        levels_i = (budget.transmission_loss_db[i], budget.received_level_db[i]) if acoustic else ()
+        level_cells = tuple(f"{x:.2f}" for x in levels_i)
         link.add_row(
             f"{d:g}",
-            f"{budget.transmission_loss_db[i]:.2f}",
-            f"{budget.received_level_db[i]:.2f}",
+            *level_cells,
             f"{budget.snr_db[i]:.2f}",
             f"{budget.rate_bps[i] / 1e3:.2f}",
             f"{budget.available_power_w[i] * 1e3:.4g}",

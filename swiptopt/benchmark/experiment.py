@@ -862,6 +862,25 @@ def _builtin(name: str, description: str, **fields: Any) -> Experiment:
     return Experiment(name=name, description=description, **fields)
 
 
+def technologies() -> Experiment:
+    """The ``technologies`` experiment: the standard suite's planners and tabular agents on the
+    same layouts with each link technology (docs/links.md). Deep RL is left out: its plateau
+    budgets per technology would take hours of training each."""
+    paper = {"preset": "paper"}
+    return _builtin(
+        "technologies",
+        "the standard suite's planners and tabular agents on the same layouts with each link technology: "
+        "the paper's acoustic link, underwater optical (UWOC, clear ocean) and magnetic induction; paper "
+        "preset, 25 nodes (docs/links.md)",
+        scenario={**paper, "n_nodes": 25},
+        sweep={"technology": ["acoustic", "optical", "magnetic_induction"]},
+        algorithms={**_AGENTS_AND_PLANNERS, "milp": {"budget": "compare"}},
+        layouts=_COMPARE_LAYOUTS,
+        episodes=10,
+        baseline="random",
+    )
+
+
 def builtin_experiments() -> dict[str, Experiment]:
     """The named experiments: ``compare`` (the standard suite), ``harbour`` (the continuous
     world's suite), ``generalisation`` and one per figure of the paper."""
@@ -930,6 +949,7 @@ def builtin_experiments() -> dict[str, Experiment]:
                 episodes=20,
                 baseline="random",
             ),
+            technologies(),
             *learning_curves(),
             *paper_figures(),
         )

@@ -188,6 +188,59 @@ def coverage_figure(outdir: str | Path, *, quick: bool = False) -> list[Path]:
     return paths
 
 
+#: The links of :func:`links_figure`: (label, preset overrides of the paper preset).
+LINK_CURVES = (
+    ("acoustic", {}),
+    *((f"optical, {water.replace('_', ' ')}", {"technology": "optical", "water_type": water})
+      for water in ("pure_sea", "clear_ocean", "coastal", "turbid_harbour")),
+    ("magnetic induction", {"technology": "magnetic_induction"}),
+)
+
+
+def links_figure(outdir: str | Path) -> list[Path]:
+    """The three link technologies against distance on the paper preset's defaults
+    (docs/links.md): link SNR, data rate (with the scenario's split) and the power a node
+    harvests, each to 60 m; the service range is where the SNR crosses the threshold. The
+    data go beside it as CSV (``fig-links.csv``)."""
+    import matplotlib
+
+    from swiptopt.link import link_budget, service_range_m
+    from swiptopt.scenario import Scenario
+
+    outdir = Path(outdir)
+    distances = np.linspace(1.0, 60.0, 119)
+    rows = []
+    with matplotlib.rc_context({"font.size": 8}):
+        fig = _figure(height_in=5.2)
+        snr_ax, rate_ax, power_ax = (fig.add_subplot(3, 1, i) for i in (1, 2, 3))
+        for label, overrides in LINK_CURVES:
+            scenario = Scenario.preset("paper", **overrides)
+            budget = link_budget(scenario, distances)
+            reach = service_range_m(scenario)
+            line = snr_ax.plot(distances, budget.snr_db, lw=1, label=f"{label} (range {reach:.0f} m)")[0]
+            rate_ax.plot(distances, budget.rate_bps / 1e3, lw=1, color=line.get_color())
+            harvested = np.where(budget.harvested_power_w > 0, budget.harvested_power_w, np.nan)
+            power_ax.plot(distances, harvested, lw=1, color=line.get_color())
+            rows += [[label, d, snr, rate, p_h, reach] for d, snr, rate, p_h in
+                     zip(distances, budget.snr_db, budget.rate_bps, budget.harvested_power_w)]
+        threshold = Scenario.preset("paper").snr_threshold_db
+        snr_ax.axhline(threshold, color="grey", lw=0.6, ls="--")
+        snr_ax.set_ylim(-20, 160)
+        snr_ax.set_ylabel("SNR (dB)")
+        snr_ax.legend(fontsize=5)
+        rate_ax.set_yscale("log")
+        rate_ax.set_ylabel("rate (kbit/s)")
+        power_ax.set_yscale("log")
+        power_ax.set_ylabel("harvested (W)")
+        power_ax.set_xlabel("distance AUV-node (m)")
+        for ax in (snr_ax, rate_ax, power_ax):
+            ax.grid(alpha=0.3)
+        paths = _save(fig, outdir, "fig-links")
+    heads = ["link", "distance_m", "snr_db", "rate_bps", "harvested_w", "service_range_m"]
+    paths.append(_write_csv(outdir, "fig-links.csv", heads, rows))
+    return paths
+
+
 def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:
