@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import swiptopt
-from planners.policies import Plan, Stop, PlanExecutor
+from planners.policies import Plan, PlanExecutor, Stop
 from planners.stops import (
     DWELLS,
     ContinuousStopChoiceEnv,
