@@ -361,6 +361,10 @@ _SAC = {
     "gradient_steps": Setting(default=2, kind="int", lo=1, hi=1_000_000, quick=1, doc="gradient steps per update"),
 }
 
+#: What a deep-RL task imports, imported once before the workers fork: torch's optimisers
+#: import torch._dynamo on first use (seconds per process otherwise).
+_DEEP_MODULES = ("torch", "torch._dynamo", "stable_baselines3")
+
 #: Bytes of a float32 value in SB3's buffers.
 _FLOAT_BYTES = 4
 
@@ -554,7 +558,7 @@ def sb3_algorithm(sb3: str, label: str, settings: dict[str, Setting] | None = No
     rollout = "n_steps" in settings
     sized = rollout or "buffer_size" in settings
     return Algorithm(name or label.lower(), label, "rl", settings, _deep(sb3), _deep_record, observation="vector",
-                     modules=("torch",), trains_model=True, worlds=worlds, trained_model=_deep_model(sb3),
+                     modules=_DEEP_MODULES, trains_model=True, worlds=worlds, trained_model=_deep_model(sb3),
                      check_scenario=_check_deep_sizes(name or label.lower(), rollout) if sized else None)
 
 
@@ -633,7 +637,8 @@ ALGORITHMS: dict[str, Algorithm] = {
         sb3_algorithm("dqn", "DQN", _DQN, name="dqn"),
         sb3_algorithm("sac", "SAC", _SAC, name="sac", worlds=(CONTINUOUS,)),
         Algorithm("stop_ppo", "stop-choosing PPO", "rl", _STOP_PPO, _deep("maskable_ppo", stops=True), _deep_record,
-                  modules=("torch",), trains_model=True, worlds=WORLDS, trained_model=_deep_model("maskable_ppo", True),
+                  modules=(*_DEEP_MODULES, "sb3_contrib"), trains_model=True, worlds=WORLDS,
+                  trained_model=_deep_model("maskable_ppo", True),
                   check_scenario=_check_deep_sizes("stop_ppo", True, candidates=True)),
         Algorithm(
             "kmeans_tsp",

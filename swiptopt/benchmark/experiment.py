@@ -726,14 +726,16 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
 #: ``learning-curve-harbour-across``): the same tasks, so the same models. Those models are
 #: shipped (swiptopt/benchmark/pretrained), so ``compare`` evaluates them instead of training
 #: them; ``--retrain`` trains them afresh (hours on two cores).
-#: The budgets across layouts: the per-layout curves' doubled (a model serves every layout),
-#: and doubled once more in the harbour for PPO and SAC, whose curves rise longest there.
+#: The budgets across layouts: the per-layout curves' doubled on the grid (a model serves
+#: every layout); in the harbour, PPO's doubled twice (its curve rises longest), SAC's as
+#: the per-layout curve's and the stop-choosing agent's halved (a SAC step or a harbour
+#: decision costs many PPO steps: lineages to the grid's budgets take hours each on a core).
 ACROSS_BUDGETS = {
     "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE),
              "stop_ppo": _doubled(_STOP_CURVE)},
     "harbour": {"ppo": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2],
-                "sac": _doubled(_SAC_CURVE) + [4 * _SAC_CURVE[-1]],
-                "stop_ppo": _doubled(_STOP_CURVE)},
+                "sac": list(_SAC_CURVE),
+                "stop_ppo": [b // 2 for b in _STOP_CURVE]},
 }
 COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}
 _COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"}
