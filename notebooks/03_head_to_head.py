@@ -37,7 +37,7 @@ import os
 
 QUICK = os.environ.get("SWIPTOPT_NOTEBOOK_QUICK", "0") == "1"
 SEED = 0
-NODE_COUNTS = [10, 20] if QUICK else [10, 20, 30, 40, 50]
+NODE_COUNTS = [6, 10] if QUICK else [10, 20, 30, 40, 50]
 LAYOUTS = 2 if QUICK else 6  # node layouts per sweep point (the error bars)
 EPISODES = 2 if QUICK else 10  # greedy evaluation episodes per task
 TRAIN_EPISODES = 1_000 if QUICK else 20_000  # per RL task

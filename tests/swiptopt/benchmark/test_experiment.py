@@ -318,8 +318,9 @@ def test_cli_reports_a_size_limit_in_one_line(tmp_path):
 
 
 def run_small(tmp_path, **fields):
-    # a label other than "tiny": the runner's exact optimum of tiny scenarios is not needed here
-    fields.setdefault("scenario", {"preset": "tiny", "name": "small"})
+    # a fading channel: the runner's exact optimum of deterministic tiny scenarios (a search of
+    # seconds) is not what these tests are about
+    fields.setdefault("scenario", {"preset": "tiny", "name": "small", "channel": "rician"})
     exp = experiment(layouts=1, episodes=1, **fields)
     store = ResultStore(tmp_path / "r.sqlite")
     execute(exp, store, workers=1)
