@@ -464,20 +464,25 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
 @click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures")
 def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
-    """Draw the figure of every experiment in a results store that defines one."""
+    """Draw the figure of every experiment in a results store that defines one, and the
+    learning curves (``fig-learning-curve``) of the experiments with budgets it holds."""
     from swiptopt.benchmark import plots
     from swiptopt.benchmark.store import ResultStore
 
     check_output_dir(outdir, "--outdir")
     with ResultStore(store_path, readonly=True) as store:
         drawn = []
-        for experiment in store.experiments():
+        latest = {e.name: e for e in store.experiments()}  # the latest run of each
+        for experiment in latest.values():
             if not experiment.figure:
                 continue
             figure = plots.experiment_figure(experiment, store, outdir)
             if figure.skipped:
                 click.echo(f"{experiment.name}: no figure: {figure.skipped}", err=True)
             drawn += figure.paths
+        curves = [e for e in latest.values() if e.budgets]
+        if curves:
+            drawn += plots.learning_curve_figure(curves, store, outdir).paths
     if not drawn:
         raise ConfigError(f"no figure to draw from {store_path}", "figure")
     click.echo("\n".join(map(str, drawn)))

@@ -82,6 +82,11 @@ def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
     assert figure.skipped == "" and {p.suffix for p in figure.paths} == {".png", ".pdf", ".csv"}
     lines = (tmp_path / "fig" / "fig-learning-curve.csv").read_text().splitlines()
     assert len(lines) == 1 + 3 + 1  # header, three budgets, the planner's band
+    # `swiptopt plot` draws the same curves from the store alone
+    from swiptopt.cli import main
+
+    assert main(["plot", str(tmp_path / "s.sqlite"), "--outdir", str(tmp_path / "plotted")]) == 0
+    assert (tmp_path / "plotted" / "fig-learning-curve.csv").read_text().splitlines() == lines
 
 
 def test_a_checkpoint_evaluates_like_the_run_of_its_length(tmp_path):
