@@ -44,6 +44,7 @@ import math
 import os
 import re
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
@@ -769,7 +770,10 @@ def load_weights(path: str | Path, config: DeepConfig, scenario: Scenario, *, co
         raise ConfigError(f"{path} holds a model trained for another configuration than {config_hash[:12]}", "path")
     pin_torch()
     env = _make_one(config, scenario)
-    model = _new_model(config, env, scenario)
+    with warnings.catch_warnings():
+        # on one copy, a rollout smaller than the batch SB3 warns of: it is never collected here
+        warnings.filterwarnings("ignore", message="You have specified a mini-batch size", category=UserWarning)
+        model = _new_model(config, env, scenario)
     try:
         model.policy.load_state_dict({name: torch.from_numpy(np.array(value)) for name, value in params.items()},
                                      strict=True)
