@@ -728,14 +728,15 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
 #: them; ``--retrain`` trains them afresh (hours on two cores).
 #: The budgets across layouts: the per-layout curves' doubled on the grid (a model serves
 #: every layout); in the harbour, PPO's doubled twice (its curve rises longest), SAC's as
-#: the per-layout curve's and the stop-choosing agent's halved (a SAC step or a harbour
-#: decision costs many PPO steps: lineages to the grid's budgets take hours each on a core).
+#: the per-layout curve's (a SAC step costs many PPO steps: a lineage to 1,048,576 steps
+#: would take hours on a core) and the stop-choosing agent's from half the per-layout
+#: curve's first budget to twice its last.
 ACROSS_BUDGETS = {
     "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE),
              "stop_ppo": _doubled(_STOP_CURVE)},
     "harbour": {"ppo": _doubled(_GRID_CURVE) + [8 * _GRID_CURVE[-1] // 2],
                 "sac": list(_SAC_CURVE),
-                "stop_ppo": [b // 2 for b in _STOP_CURVE]},
+                "stop_ppo": [_STOP_CURVE[0] // 2, *_STOP_CURVE, 2 * _STOP_CURVE[-1]]},
 }
 COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}
 _COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"}

@@ -53,3 +53,28 @@ def test_retraining_reproduces_the_shipped_models_evaluations(suite, tmp_path):
     for key in keys:
         assert shipped[key]["records"] == retrained[key]["records"]
         assert shipped[key]["extra"]["model"] == retrained[key]["extra"]["model"]
+
+
+@pytest.mark.parametrize("suite", ["compare", "harbour"])
+def test_every_model_compare_needs_is_shipped(suite):
+    """`compare` (both suites, full budgets, a new store) trains nothing: each deep-RL task's
+    model is in the shipped directory, vouched for by its manifest."""
+    from rl.deep import find_model
+    from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
+    from swiptopt.scenario import Scenario
+
+    needed = set()
+    for t in builtin_experiments()[suite].tasks():
+        algorithm = ALGORITHMS[t.algorithm]
+        if algorithm.trained_model is None:
+            continue
+        context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, tuple(t.training_layouts),
+                               None, t.world, (), (str(PRETRAINED_DIR),))
+        config, scenario = algorithm.trained_model(t.settings, t.seed, context)
+        found, note = find_model([PRETRAINED_DIR], config, scenario)
+        assert found is not None, f"{suite}: {t.algorithm} seed {t.seed}: {note}"
+        needed.add(found.name)
+    # three training seeds of each deep-RL contender, one model each (trained across layouts)
+    assert len(needed) == 3 * len([a for a in builtin_experiments()[suite].algorithms if ALGORITHMS[a].trains_model
+                                   and ALGORITHMS[a].trained_model is not None])
