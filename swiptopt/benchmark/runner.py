@@ -381,8 +381,15 @@ def _local(batches: list[list[dict[str, Any]]], workers: int,
         try:
             while (queue or running) and not lost:
                 while queue and len(running) < 2 * workers:  # a short queue: a crash strands little
-                    batch = queue.popleft()
-                    running[pool.submit(run_batch, batch)] = batch
+                    try:
+                        future = pool.submit(run_batch, batch := queue.popleft())
+                    except BrokenProcessPool:  # a worker died already: the batch waits for the next pool
+                        queue.appendleft(batch)
+                        break
+                    running[future] = batch
+                if not running:  # the pool broke before it took any batch: the next runs alone
+                    lost.append(queue.popleft())
+                    break
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
                     batch = running.pop(future)

@@ -107,6 +107,32 @@ def test_a_worker_that_crashes_loses_only_the_crashing_task(tmp_path, monkeypatc
         assert set(s.failures()) == broken
 
 
+def test_a_pool_that_breaks_while_it_is_handed_batches_loses_nothing(tmp_path, monkeypatch):
+    """A pool can break (a worker died) between two submissions, so that ``submit`` itself
+    raises: the batch it refused runs with the next pool, and no task is lost."""
+    import concurrent.futures
+    from concurrent.futures.process import BrokenProcessPool
+
+    calls = []
+
+    class BreaksOnce(concurrent.futures.ProcessPoolExecutor):
+        def submit(self, fn, /, *args, **kwargs):
+            calls.append(fn)
+            if len(calls) == 3:
+                raise BrokenProcessPool("a worker died (simulated)")
+            return super().submit(fn, *args, **kwargs)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", BreaksOnce)
+    experiment = Experiment.from_dict({
+        "name": "broken-pool", "layouts": 6, "episodes": 1, "scenario": {"preset": "paper", "n_nodes": 6},
+        "algorithms": {"random": {}, "greedy": {}},
+    })
+    with ResultStore(tmp_path / "s.sqlite") as s:
+        report = execute(experiment, s, workers=2)
+        assert len(calls) > 3  # the pool did refuse a batch
+        assert report.failed == 0 and s.count() == len(experiment.tasks()) == 12
+
+
 @needs_ompl
 def test_ompl_tasks_run_in_fresh_processes_and_repeat(tmp_path, monkeypatch):
     experiment = Experiment.from_dict({
