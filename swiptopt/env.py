@@ -115,35 +115,26 @@ def check_layout_seeds(value: Any) -> Sequence[int] | None:
     return np.array([_layout_seed(v, "layout_seeds[...]") for v in value], dtype=np.int64)
 
 
-class LayoutEnv(gym.Env):
-    """What both worlds' environments share: the registration spec with the scenario's
-    episode length, and a layout per episode (``layout_seeds``, ``reset(options=...)``) with
-    the last :data:`LAYOUT_CACHE_SIZE` layouts kept built. A subclass sets ``scenario``,
-    ``_scenario0``, ``layout_seeds`` and ``_layouts`` (layout seed -> (scenario, built)) and
-    defines :meth:`_build_layout` and :meth:`_set_layout`."""
+class Layouts:
+    """A layout per episode (``layout_seeds``, ``reset(options=...)``) with the last
+    :data:`LAYOUT_CACHE_SIZE` layouts kept built, for an environment with ``np_random`` and
+    ``metadata`` (both worlds' Gymnasium envs and the fleet's PettingZoo env). A subclass
+    sets ``scenario``, ``_scenario0``, ``layout_seeds`` and ``_layouts`` (layout seed ->
+    (scenario, built)) and defines :meth:`_build_layout` and :meth:`_set_layout`."""
 
-    _spec: EnvSpec | None = None
+    #: Whether the environment runs a fleet (a scenario with ``n_auvs > 1``).
+    _fleet = False
 
-    @property
-    def spec(self) -> EnvSpec | None:
-        """The registration spec (set by ``gymnasium.make``), its ``max_episode_steps`` the
-        scenario's ``episode_steps``."""
-        return self._spec
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        # gymnasium.make sets the spec after construction, without an episode length: the
-        # scenario knows it (the env truncates itself, so no TimeLimit is needed)
-        if value is not None and value.max_episode_steps is None:
-            value = dataclasses.replace(value, max_episode_steps=self.scenario.episode_steps)
-        self._spec = value
+    #: Whether ``reset`` refuses options other than :data:`RESET_OPTIONS` (PettingZoo's API
+    #: test resets with options of its own, which a PettingZoo env must ignore).
+    _strict_options = True
 
     def _episode_layout_seed(self, options: Mapping[str, Any] | None) -> int:
         if options:
             if not isinstance(options, Mapping):
                 raise ConfigError(f"reset options must be a dict, got {options!r}", "options")
             unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
-            if unknown:
+            if unknown and self._strict_options:
                 raise ConfigError(
                     f"unknown reset option {unknown[0]!r}: allowed options are {list(RESET_OPTIONS)}", "options"
                 )
@@ -164,6 +155,11 @@ class LayoutEnv(gym.Env):
             scenario = Scenario.preset(preset, **overrides)
         elif overrides:
             scenario = scenario.replace(**overrides)
+        if scenario.n_auvs > 1 and not self._fleet:
+            raise ConfigError(
+                f"n_auvs = {scenario.n_auvs}: this environment runs one AUV; run a fleet in "
+                "swiptopt.env_fleet.AuvFleetEnv (docs/fleet.md)", "n_auvs",
+            )
         render_modes = Spec(kind="str", choices=tuple(self.metadata["render_modes"]), optional=True)
         check_value("render_mode", render_mode, render_modes)
         check_value("backend", backend, Spec(kind="str", choices=BACKENDS))
@@ -195,6 +191,27 @@ class LayoutEnv(gym.Env):
     def _set_layout(self, built: Any) -> None:
         """Start using the arrays :meth:`_build_layout` made."""
         raise NotImplementedError
+
+
+class LayoutEnv(Layouts, gym.Env):
+    """What both worlds' environments share: the registration spec with the scenario's
+    episode length, and a layout per episode (:class:`Layouts`)."""
+
+    _spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registration spec (set by ``gymnasium.make``), its ``max_episode_steps`` the
+        scenario's ``episode_steps``."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        # gymnasium.make sets the spec after construction, without an episode length: the
+        # scenario knows it (the env truncates itself, so no TimeLimit is needed)
+        if value is not None and value.max_episode_steps is None:
+            value = dataclasses.replace(value, max_episode_steps=self.scenario.episode_steps)
+        self._spec = value
 
 
 class AuvSwiptEnv(LayoutEnv):

@@ -580,26 +580,44 @@ def step(action, uniforms, normals, arrays):  # type: ignore[no-untyped-def]
     )
 
 
-# One function on purpose, over its complexity and length limits: the rest of the step, which
-# numba compiles with the step (_KERNEL_FUNCTIONS) and which the Python reference runs from the
-# same source. One pass over the covered pairs applies the model's rules in their order
-# (fading, decoding, harvesting, the uplink, drain, reward, the episode's end); helpers would
-# scatter that order, which the kernel traces' reference digests (tests/swiptopt/test_cpu_paths.py)
-# hold to the last bit, across the grid and the continuous worlds that both end here.
-def serve(  # type: ignore[no-untyped-def]  # noqa: C901
+def serve(  # type: ignore[no-untyped-def]
     propulsion_j, start, stop, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
     where, data_left, energy, delivered, collected, acc, parts,
 ):
     """The rest of a step once the AUV has moved, whichever world it moves in: the
     propulsion energy ``propulsion_j`` of the move (plus the hotel load) is counted, the
     covered pairs ``cov_node[start:stop]`` (with their mean SNR and available power) are
-    served with the step's draws, then idle drain, reward parts, t += 1 and the end of the
-    episode, as :func:`step` documents. The grid's :func:`step` and the continuous world's
-    step (:mod:`swiptopt.continuous`) both end here, so the two worlds share every rule
-    after the motion."""
+    served with the step's draws (:func:`serve_pairs`), then idle drain, reward parts,
+    t += 1 and the end of the episode (:func:`finish_step`), as :func:`step` documents. The
+    grid's :func:`step` and the continuous world's step (:mod:`swiptopt.continuous`) both end
+    here, so the two worlds share every rule after the motion; a fleet's step
+    (:mod:`swiptopt.fleet`) calls the same two parts, once per AUV and once per step."""
+    bits_total, joules_total = serve_pairs(
+        propulsion_j, start, stop, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
+        where, data_left, energy, delivered, collected, acc,
+    )
+    exhausted = acc[A_PROPULSION_J] + acc[A_HOTEL_J] + acc[A_PROJECTOR_J] >= params[P_BATTERY_J]
+    return finish_step(
+        bits_total, joules_total, propulsion_j + params[P_HOTEL_J], exhausted, params, where, data_left, energy,
+        capacity, acc, parts,
+    )
+
+
+# One function on purpose, over its complexity and length limits: one AUV's part of a step,
+# which numba compiles with the step (_KERNEL_FUNCTIONS) and which the Python reference runs
+# from the same source. One pass over the covered pairs applies the model's rules in their
+# order (fading, decoding, harvesting, the uplink); helpers would scatter that order, which
+# the kernel traces' reference digests (tests/swiptopt/test_cpu_paths.py) hold to the last
+# bit, across the grid and the continuous worlds that both end here.
+def serve_pairs(  # type: ignore[no-untyped-def]  # noqa: C901
+    propulsion_j, start, stop, uniforms, normals, cov_node, cov_snr, cov_pav, capacity, fail_prob, params,
+    where, data_left, energy, delivered, collected, acc,
+):
+    """One AUV's share of a step: its move's propulsion energy ``propulsion_j`` and the
+    hotel load are counted in ``acc``, then the pairs it covers, ``cov_node[start:stop]``, are
+    served with the next draws of the buffers (read at ``where``'s positions), as
+    :func:`step` documents; returns (bits collected, joules delivered) in the step."""
     dt = params[P_DT]
-    gamma = params[P_GAMMA]
-    move_j = propulsion_j + params[P_HOTEL_J]
     acc[A_PROPULSION_J] += propulsion_j
     acc[A_HOTEL_J] += params[P_HOTEL_J]
 
@@ -682,6 +700,18 @@ def serve(  # type: ignore[no-untyped-def]  # noqa: C901
                     data_left[i] -= bits
                     collected[i] += bits
                     bits_total += bits
+    return bits_total, joules_total
+
+
+def finish_step(  # type: ignore[no-untyped-def]
+    bits_total, joules_total, move_j, exhausted, params, where, data_left, energy, capacity, acc, parts
+):
+    """The end of a step, after every AUV has served (:func:`serve_pairs`): idle drain, the
+    reward parts of ``bits_total`` collected, ``joules_total`` delivered and ``move_j`` of
+    propulsion and hotel energy, the running totals, t += 1; returns TERMINATED when
+    ``exhausted`` (no battery left to go on) or every node is served, TRUNCATED at the
+    episode's length, else RUNNING."""
+    gamma = params[P_GAMMA]
     if params[P_DRAIN_J] > 0.0:
         for i in range(energy.shape[0]):
             energy[i] = max(0.0, energy[i] - params[P_DRAIN_J])
@@ -699,7 +729,7 @@ def serve(  # type: ignore[no-untyped-def]  # noqa: C901
     if acc[A_STEPS_ENERGY_TARGET] < 0.0 and acc[A_JOULES] >= params[P_ENERGY_TARGET] * (1.0 - 1e-12):
         acc[A_STEPS_ENERGY_TARGET] = t
 
-    if acc[A_PROPULSION_J] + acc[A_HOTEL_J] + acc[A_PROJECTOR_J] >= params[P_BATTERY_J]:
+    if exhausted:
         return TERMINATED
     # the served set can only have grown in a step that delivered something
     if (bits_total > 0.0 or joules_total > 0.0) and all_served(data_left, energy, capacity, gamma):
@@ -749,6 +779,8 @@ _KERNEL_FUNCTIONS = (
     "tabular_observation",
     "needs_refill",
     "reset_state",
+    "serve_pairs",
+    "finish_step",
     "serve",
     "step",
     "step_tabular",

@@ -136,6 +136,9 @@ def _field(default: Any, unit: str = "", doc: str = "", **spec: Any) -> Any:
     return field(default=default, metadata={"spec": Spec(unit=unit, doc=doc, **spec)})
 
 
+#: The largest fleet a scenario may have.
+MAX_AUVS = 16
+
 CHANNELS = ("none", "shadowing", "rician")
 #: The signalling technology of the AUV-node link (docs/links.md): the paper's acoustic link,
 #: underwater optical (UWOC) or magnetic induction (MI).
@@ -296,6 +299,17 @@ class Scenario:
     hotel_power_w: float = _field(15.0, "W", "hotel load H", lo=0, hi=1e5)
     station_keeping_power_w: float = _field(0.0, "W", "extra power to hold station", lo=0, hi=1e5)
     battery_j: float = _field(3.6e6, "J", "AUV battery energy (1 kWh)", lo=0, lo_open=True, hi=1e12)
+
+    # fleet (docs/fleet.md): several AUVs on one network
+    n_auvs: int = _field(1, "", "fleet: number of AUVs (1: the paper's single AUV)", lo=1, hi=MAX_AUVS, kind="int")
+    auv_start_cells: tuple[tuple[int, int, int], ...] | None = _field(
+        None, "cell", "fleet: each AUV's start (i, j, k); default spread along x across the surface", kind="cells",
+        optional=True,
+    )
+    auv_batteries_j: tuple[float, ...] | None = _field(
+        None, "J", "fleet: each AUV's battery energy; default battery_j for every AUV", kind="energies", optional=True
+    )
+    share_cells: bool = _field(False, "", "fleet: whether two AUVs may be in one cell", kind="bool")
     current_mps: tuple[float, float, float] = _field(
         (0.0, 0.0, 0.0), "m/s", "ocean current at the surface (x, y, z)", kind="vector3"
     )
@@ -408,11 +422,38 @@ class Scenario:
                 raise ScenarioError(
                     f"seabed_height_m values must lie in [0, depth_m = {self.depth_m:g})", "seabed_height_m"
                 )
+        self._check_fleet()
         start = self.start_cell_index
         if self.blocked_cells[start]:
             raise ScenarioError(
                 f"start_cell = {self.resolved_start_cell} lies inside an obstacle or below the seabed",
                 "start_cell",
+            )
+
+    def _check_fleet(self) -> None:
+        for name in ("auv_start_cells", "auv_batteries_j"):
+            value = getattr(self, name)
+            if value is not None and len(value) != self.n_auvs:
+                raise ScenarioError(f"{name} has {len(value)} entries but n_auvs = {self.n_auvs}", name)
+        if self.auv_start_cells is not None and self.start_cell is not None:
+            raise ScenarioError("give start_cell (one AUV) or auv_start_cells (a fleet), not both", "auv_start_cells")
+        if self.n_auvs > 1 and self.start_cell is not None:
+            raise ScenarioError(
+                f"start_cell is one AUV's start: with n_auvs = {self.n_auvs} give auv_start_cells instead",
+                "start_cell",
+            )
+        cells = self.fleet_start_cells
+        limit = tuple(n - 1 for n in self.grid_shape)
+        for k, cell in enumerate(cells):
+            if any(not 0 <= c < n for c, n in zip(cell, self.grid_shape)):
+                raise ScenarioError(f"auv_start_cells[{k}] = {cell} is outside the grid 0..{limit}", "auv_start_cells")
+            if self.n_auvs > 1 and self.blocked_cells[int(self.cell_index(cell))]:
+                where = f"auv_start_cells[{k}] = {cell}" if self.auv_start_cells else f"AUV {k}'s default start {cell}"
+                raise ScenarioError(f"{where} lies inside an obstacle or below the seabed", "auv_start_cells")
+        if not self.share_cells and len(set(cells)) < len(cells):
+            raise ScenarioError(
+                f"auv_start_cells = {[list(c) for c in cells]} puts two AUVs in one cell: give each its own cell, "
+                "or set share_cells = true", "auv_start_cells",
             )
 
     # ------------------------------------------------------------------ construction
@@ -462,12 +503,12 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         """Every field as plain TOML-compatible values (``None`` fields omitted, and the link
-        technology's fields when they hold their defaults: a scenario that uses none of them
-        reads, and hashes, as it did before they existed)."""
+        technology's and the fleet's fields when they hold their defaults: a scenario that
+        uses none of them reads, and hashes, as it did before they existed)."""
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value is None or (f.name in TECHNOLOGY_FIELDS and value == f.default):
+            if value is None or (f.name in OPTIONAL_FIELDS and value == f.default):
                 continue
             if f.name == "obstacles":
                 value = [_obstacle_to_mapping(o) for o in value]
@@ -545,12 +586,31 @@ class Scenario:
         """The start cell; by default the surface cell at the centre of the area."""
         if self.start_cell is not None:
             return self.start_cell
+        if self.auv_start_cells is not None:
+            return self.auv_start_cells[0]
         nx, ny, _ = self.grid_shape
         return (nx // 2, ny // 2, 0)
 
     @property
     def start_cell_index(self) -> int:
         return int(self.cell_index(self.resolved_start_cell))
+
+    @property
+    def fleet_start_cells(self) -> tuple[tuple[int, int, int], ...]:
+        """Each AUV's start cell: ``auv_start_cells``, else the single AUV's start
+        (``n_auvs = 1``), else the surface cells at the centre line y = ny // 2 with x
+        spread evenly, AUV k at x = (2k + 1) nx // (2 n_auvs)."""
+        if self.auv_start_cells is not None:
+            return self.auv_start_cells
+        if self.n_auvs == 1:
+            return (self.resolved_start_cell,)
+        nx, ny, _ = self.grid_shape
+        return tuple(((2 * k + 1) * nx // (2 * self.n_auvs), ny // 2, 0) for k in range(self.n_auvs))
+
+    @property
+    def fleet_batteries_j(self) -> tuple[float, ...]:
+        """Each AUV's battery energy, J: ``auv_batteries_j``, else ``battery_j`` for each."""
+        return self.auv_batteries_j if self.auv_batteries_j is not None else (self.battery_j,) * self.n_auvs
 
     def seabed_depth_m(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
         """Depth of the seabed under (x, y), m (``depth_m`` where no height map is set)."""
@@ -635,6 +695,23 @@ def _uniform_free_points(scenario: Scenario, n: int, rng: np.random.Generator) -
     raise ScenarioError("the obstacles leave no free water to place nodes in", "obstacles")
 
 
+def _check_list(name: str, value: Any, spec: Spec) -> tuple[Any, ...]:
+    """A field holding a list: of cells (one per AUV), of energies (one per AUV) or of positions."""
+    if spec.kind == "positions":
+        if not isinstance(value, (list, tuple, np.ndarray)):
+            raise ScenarioError(f"{name} must be a list of (x, y, depth) triples", name)
+        return tuple(_vector(name, p, 3) for p in value)
+    what = "(i, j, k) cells" if spec.kind == "cells" else "energies in J"
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) == 0:
+        raise ScenarioError(f"{name} must be a list of {what}, one per AUV", name)
+    if spec.kind == "cells":
+        return tuple(_check_field(name, cell, dataclasses.replace(spec, kind="cell")) for cell in value)
+    each = dataclasses.replace(spec, kind="float", lo=0, lo_open=True, hi=1e12, optional=False)
+    return tuple(
+        float(check_value(f"{name}[{i}]", v, each, error=ScenarioError, field=name)) for i, v in enumerate(value)
+    )
+
+
 def _check_field(name: str, value: Any, spec: Spec) -> Any:
     kind = spec.kind
     if value is None:
@@ -651,10 +728,8 @@ def _check_field(name: str, value: Any, spec: Spec) -> Any:
         ):
             raise ScenarioError(f"{name} = {value!r} must be three integers (i, j, k)", name)
         return tuple(int(v) for v in value)
-    if kind == "positions":
-        if not isinstance(value, (list, tuple, np.ndarray)):
-            raise ScenarioError(f"{name} must be a list of (x, y, depth) triples", name)
-        return tuple(_vector(name, p, 3) for p in value)
+    if kind in ("cells", "energies", "positions"):
+        return _check_list(name, value, spec)
     if kind == "heightmap":
         # len(), not truth: a numpy array has no single truth value
         if not isinstance(value, (list, tuple, np.ndarray)) or len(value) == 0:
@@ -686,6 +761,10 @@ TECHNOLOGY_FIELDS = frozenset(
     f.name for f in dataclasses.fields(Scenario)
     if f.name == "technology" or f.metadata["spec"].doc.startswith(("optical:", "MI:"))
 )
+
+#: The fleet's fields, which a scenario's dict holds only when they differ from their defaults.
+FLEET_FIELDS = frozenset(f.name for f in dataclasses.fields(Scenario) if f.metadata["spec"].doc.startswith("fleet:"))
+OPTIONAL_FIELDS = TECHNOLOGY_FIELDS | FLEET_FIELDS
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper": {},
