@@ -249,3 +249,41 @@ def _gymnasium_vector_step(env: Any, actions: Any) -> tuple[Any, np.ndarray, lis
         # without autoreset a finished sub-env must be reset before the next step
         obs, _ = env.reset(options={"reset_mask": dones})
     return obs, dones, ended
+
+
+# ----------------------------------------------------------------------- fleets
+
+#: The metrics :func:`evaluate_fleet` summarises: the single AUV's, for the fleet as a
+#: whole, then the fleet's own (:func:`swiptopt.fleet.fleet_metrics`; its per-AUV lists
+#: stay in the records).
+FLEET_SUMMARY_METRICS = (*EPISODE_METRICS, "makespan_s", "jain_auv_energy")
+
+
+@runtime_checkable
+class FleetPolicy(Protocol):
+    """Anything that acts for a fleet: ``act(observations)`` maps each live agent's
+    observation (a dict, as :class:`~swiptopt.env_fleet.AuvFleetEnv` gives them) to its
+    action. A policy that plans per episode may also define ``begin_episode(env,
+    observations, infos)``; :func:`evaluate_fleet` calls it after every reset."""
+
+    def act(self, observations: Mapping[str, Any]) -> Mapping[str, Any]: ...
+
+
+def evaluate_fleet(policy: FleetPolicy, env: Any, episodes: int, seed: int = 0) -> EvaluationResult:
+    """Run ``episodes`` episodes of a fleet env (:class:`~swiptopt.env_fleet.AuvFleetEnv`),
+    episode i reset with seed ``seed + i``; a record holds the fleet's metrics (its per-AUV
+    lists among them), its seed and layout, as :func:`evaluate`'s do for one AUV."""
+    episodes = check_value("episodes", episodes, EPISODES)
+    if not callable(getattr(policy, "act", None)):
+        raise ConfigError(f"policy {type(policy).__name__} has no act(observations) method", "policy")
+    records = []
+    for i in range(episodes):
+        observations, infos = env.reset(seed=seed + i)
+        layout_seed = next(iter(infos.values()), {}).get("layout_seed")
+        if hasattr(policy, "begin_episode"):
+            policy.begin_episode(env, observations, infos)
+        while env.agents:
+            observations, *_ = env.step(policy.act(observations))
+        records.append(_record(i, seed + i, layout_seed, env.episode_metrics()))
+    summary = {name: Summary.of([r[name] for r in records]) for name in FLEET_SUMMARY_METRICS}
+    return EvaluationResult(records, summary)
