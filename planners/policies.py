@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -88,11 +89,14 @@ class Reach:
     """Nodes some cell covers, but only cells the AUV cannot reach."""
 
 
-def reachable(tables: K.Tables) -> Reach:
-    """The cells reachable from ``tables.start_cell`` through the kernel's own moves, and the
-    tables restricted to them (the coverage of every other cell removed)."""
-    dist, _ = bfs_distances(tables.next_cell, tables.start_cell)
-    cells = dist >= 0
+def reachable(tables: K.Tables, starts: Iterable[int] | None = None) -> Reach:
+    """The cells reachable from ``tables.start_cell`` (or from any of the cells ``starts``:
+    a fleet's start cells) through the kernel's own moves, and the tables restricted to them
+    (the coverage of every other cell removed)."""
+    cells = np.zeros(tables.n_cells, dtype=bool)
+    for start in [tables.start_cell] if starts is None else starts:
+        dist, _ = bfs_distances(tables.next_cell, int(start))
+        cells |= dist >= 0
     counts = np.diff(tables.cov_ptr)
     keep = np.repeat(cells, counts)
     cov_ptr = np.zeros_like(tables.cov_ptr)
@@ -193,6 +197,43 @@ class PlanExecutor(Parameterised):
         return K.HOVER
 
 
+def route_plan(scenario: Scenario, tables: K.Tables, start: int, order: list[int]) -> Plan:
+    """The stops of a route that leaves ``start`` and visits the hover cells ``order`` in turn.
+
+    The AUV moves between consecutive cells along shortest grid paths (``tables.next_cell``);
+    stops at the tail whose moves do not fit in the episode are dropped. The steps left after
+    the moves (with each stop's arrival step, which serves too) are shared among the stops by
+    the dwell program (:func:`planners.power_split.dwell_steps`, at the scenario's split
+    ratio) over the links from each cell (``tables``' coverage). Returns the plan with status
+    ``"dwell <program status>"`` and details ``travel_moves`` and ``power_split`` (the
+    program's result), or no stops with status ``"no stop within the episode"``.
+    """
+    from planners.power_split import dwell_steps, stop_inputs
+
+    # moves along the grid between consecutive stops; drop the tail that does not fit
+    moves = []
+    here = start
+    for c in order:
+        dist, _ = bfs_distances(tables.next_cell, here)
+        moves.append(int(dist[c]))
+        here = c
+    steps = scenario.episode_steps
+    keep = len(order)
+    while keep and sum(moves[:keep]) > steps:
+        keep -= 1
+    order, moves = order[:keep], moves[:keep]
+    if not order:
+        return Plan([], status="no stop within the episode")
+    service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
+
+    snr, p_av = hover_link(scenario, np.asarray(order), tables)
+    inputs = stop_inputs(scenario, snr, p_av, mission_time_s=service_steps * scenario.step_duration_s)
+    dwell, result = dwell_steps(inputs, scenario.step_duration_s, service_steps, service_steps,
+                                split_ratio=scenario.split_ratio)
+    stops = [Stop(c, int(d)) for c, d in zip(order, dwell)]
+    return Plan(stops, status=f"dwell {result.status}", details={"travel_moves": sum(moves), "power_split": result})
+
+
 class KMeansTspPlanner(PlanExecutor):
     """k-means hover points -> TSP tour -> convex dwell times -> grid moves and hovers.
 
@@ -213,7 +254,6 @@ class KMeansTspPlanner(PlanExecutor):
     parameters = KMEANS_TSP_PARAMETERS
 
     def make_plan(self, env: Any) -> Plan:
-        from planners.power_split import dwell_steps, stop_inputs
         from planners.tsp import solve_tsp
 
         scenario = env.scenario
@@ -242,32 +282,14 @@ class KMeansTspPlanner(PlanExecutor):
         tour = solve_tsp(costs, start=0, closed=False, time_limit_s=self.tsp_time_limit_s, method=self.tsp_method)
         order = [cells[i] for i in tour.order[1:]]
 
-        # moves along the grid between consecutive stops; drop the tail that does not fit
-        moves = []
-        here = start
-        for c in order:
-            dist, _ = bfs_distances(tables.next_cell, here)
-            moves.append(int(dist[c]))
-            here = c
-        steps = scenario.episode_steps
-        keep = len(order)
-        while keep and sum(moves[:keep]) > steps:
-            keep -= 1
-        order, moves = order[:keep], moves[:keep]
-        if not order:
-            return _with_reach(Plan([], status="no stop within the episode"), where)
-        service_steps = steps - sum(moves) + len(order)  # arrival steps serve too
-
-        snr, p_av = hover_link(scenario, np.asarray(order), tables)
-        inputs = stop_inputs(scenario, snr, p_av, mission_time_s=service_steps * scenario.step_duration_s)
-        dwell, result = dwell_steps(inputs, scenario.step_duration_s, service_steps, service_steps,
-                                    split_ratio=scenario.split_ratio)
-        stops = [Stop(c, int(d)) for c, d in zip(order, dwell)]
+        route = route_plan(scenario, tables, start, order)
+        if not route.stops:
+            return _with_reach(Plan([], status=route.status), where)
         plan = Plan(
-            stops,
-            status=f"tsp {tour.status}, dwell {result.status}",
-            details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": sum(moves),
-                     "tour_costs": kind, "power_split": result},
+            route.stops,
+            status=f"tsp {tour.status}, {route.status}",
+            details={"hover_k": hover.k, "tour_length": tour.length, "travel_moves": route.details["travel_moves"],
+                     "tour_costs": kind, "power_split": route.details["power_split"]},
         )
         return _with_reach(plan, where)
 

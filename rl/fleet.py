@@ -42,6 +42,59 @@ def make_shared_vec_env(n_copies: int, scenario: Any = None, **kwargs: Any) -> A
     return _shared_class()([AuvFleetEnv(scenario, **kwargs) for _ in range(n_copies)])
 
 
+class IndependentAgents:
+    """One agent per AUV (the paper's tabular Q-learning or SARSA, or the random agent),
+    each acting on its own AUV's observation and learning from its own reward alone, as the
+    paper's agents would be used on a fleet. ``act`` is greedy (the evaluation's), the
+    agents' own ``act`` is their training-time action."""
+
+    def __init__(self, agents: list[Any]):
+        self.agents = agents
+
+    @classmethod
+    def make(cls, algorithm: str, n_auvs: int, n_states: int, *, config: Any = None,
+             seed: int = 0) -> IndependentAgents:
+        """``n_auvs`` agents of ``algorithm`` (:func:`rl.make_agent`), AUV k's seeded ``seed + k``."""
+        from rl.agents import make_agent
+
+        return cls([make_agent(algorithm, n_states, config=config, seed=seed + k) for k in range(n_auvs)])
+
+    def act(self, observations: Mapping[str, Any]) -> dict[str, int]:
+        return {a: int(self.agents[_index(a)].predict(obs, deterministic=True)) for a, obs in observations.items()}
+
+
+def _index(agent: str) -> int:
+    return int(agent.rsplit("_", 1)[1])
+
+
+def train_independent(learners: IndependentAgents, env: AuvFleetEnv, episodes: int, seed: int | None = None) -> None:
+    """Train every AUV's agent in ``env`` (tabular observation) for ``episodes`` fleet
+    episodes, the first reset seeded with ``seed``: each acts epsilon-greedily on its own
+    observation and learns from its own transitions, in the single AUV's order
+    (:func:`rl.train`: SARSA picks its next action before its update, Q-learning after),
+    and decays its epsilon after each episode. An AUV that leaves the fleet early learns its
+    last transition as terminal."""
+    if env.observation != "tabular":
+        raise ConfigError("independent tabular agents act on the tabular observation: observation='tabular'",
+                          "observation")
+    agents = learners.agents
+    for ep in range(episodes):
+        observations, _ = env.reset(seed=seed if ep == 0 else None)
+        actions = {a: agents[_index(a)].act(obs) for a, obs in observations.items()}
+        while env.agents:
+            after, rewards, terminations, truncations, _ = env.step(actions)
+            upcoming = {}
+            for a, action in actions.items():
+                agent, done = agents[_index(a)], terminations[a] or truncations[a]
+                a_next = agent.act(after[a]) if agent.sarsa and not terminations[a] else 0
+                agent.update(observations[a], action, rewards[a], after[a], terminations[a], a_next)
+                if not done:
+                    upcoming[a] = a_next if agent.sarsa else agent.act(after[a])
+            observations, actions = after, upcoming
+        for agent in agents:
+            agent.end_episode()
+
+
 class SharedPolicy:
     """A trained SB3 model acting for every AUV of a fleet: ``act(observations)`` maps the
     fleet env's per-agent observations to per-agent actions (deterministic by default)."""
@@ -170,4 +223,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["FleetSharedVecEnv", "SharedPolicy", "make_shared_vec_env"]  # noqa: F822
+__all__ = ["FleetSharedVecEnv", "IndependentAgents", "SharedPolicy", "make_shared_vec_env", "train_independent"]  # noqa: F822

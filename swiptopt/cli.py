@@ -366,7 +366,7 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # ty
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["paper", "learning-curve", "links"]))
+@click.argument("what", type=click.Choice(["paper", "learning-curve", "links", "fleet"]))
 @_options("quick", "store", "workers", "scheduler")
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures", help="Where figures and data go.")
 @click.option(
@@ -384,7 +384,9 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
     energy figures with Gamma = 0 and alpha = 0 (harvesting only), the paper's extremes
     (Section IV). ``learning-curve`` writes ``fig-learning-curve`` (return against budget,
     the planners as bands) and prints the curves' table. ``links`` writes ``fig-links``
-    (SNR, rate and harvested power against distance for each technology; no task runs)."""
+    (SNR, rate and harvested power against distance for each technology; no task runs);
+    ``fleet`` writes ``fig-fleet-routes`` (the routing planner's fleets of 1, 2 and 4 AUVs on
+    the fleet suite's field, seen from above; no task runs)."""
     from rich.console import Console
 
     from swiptopt.benchmark import plots, tables
@@ -398,6 +400,9 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
     failures = []
     if what == "links":
         console.print(", ".join(map(str, plots.links_figure(outdir))))
+        return
+    if what == "fleet":
+        console.print(", ".join(map(str, plots.fleet_routes_figure(outdir))))
         return
     if what == "learning-curve":
         from swiptopt.benchmark.experiment import load_experiments

@@ -169,6 +169,11 @@ class Algorithm:
     observation: str | None = None
     modules: tuple[str, ...] = ()
     trains_model: bool = False
+    fleet: bool = False
+    """Runs a fleet (docs/fleet.md): its tasks run in :class:`swiptopt.env_fleet.AuvFleetEnv`
+    (any ``n_auvs``, one included), ``build`` returns a fleet policy (``act(observations)``,
+    :func:`swiptopt.evaluation.evaluate_fleet`), and only such algorithms run on a scenario
+    with ``n_auvs > 1``."""
     check: Callable[[dict[str, Any]], None] | None = None
     """Checks between settings (called with the resolved settings; raises ConfigError)."""
     check_scenario: Callable[[dict[str, Any], Any], None] | None = None
@@ -623,6 +628,91 @@ _CONTINUOUS_QUICK = {"k": {"hi_of": _n_nodes, "hi_doc": "n_nodes"}, "k_max": {"q
 _OMPL_TOUR = declared(OmplTourPlanner, skip=("seed",), ompl_iterations={"quick": 50}, **_CONTINUOUS_QUICK)
 _STRAIGHT_LINE = declared(StraightLinePlanner, skip=("seed",), **_CONTINUOUS_QUICK)
 
+# ------------------------------------------------------------------ fleets
+
+#: The fleet's tabular agents train in the Python loop (the fleet has no compiled trainer).
+_FLEET_TRAINING = {"train_episodes": _RL_TRAINING["train_episodes"]}
+
+
+def _fleet_agents(algorithm: str) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+    """Independent agents of ``algorithm``, one per AUV (:class:`rl.fleet.IndependentAgents`),
+    trained in the task's fleet env (the random agent learns nothing)."""
+
+    def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
+        from rl import TabularConfig
+        from rl.fleet import IndependentAgents, train_independent
+
+        settings = dict(settings)
+        episodes = settings.pop("train_episodes", 0)
+        config = None if algorithm == "random" else TabularConfig().replace(**settings)
+        n_states = env.observation_space(env.possible_agents[0]).n
+        agents = IndependentAgents.make(algorithm, env.fleet.n_auvs, n_states, config=config, seed=seed)
+        if algorithm != "random" and episodes:
+            train_independent(agents, env, episodes, seed=seed)
+        return agents
+
+    return build
+
+
+#: Parameter-shared PPO's settings: the deep algorithms' and PPO's, ``n_envs`` counting
+#: copies of the fleet (each AUV of each copy is one sub-environment).
+_SHARED_PPO = {
+    "timesteps": Setting(default=524_288, kind="int", lo=1, hi=10**9, quick=1024,
+                         doc="AUV steps of training, every AUV of every copy together (PPO collects whole "
+                             "rollouts of n_envs x n_auvs x n_steps steps)"),
+    "n_envs": Setting(default=8, kind="int", lo=1, hi=1024, quick=2,
+                      doc="copies of the fleet stepped together (each AUV of each copy one sub-environment)"),
+    **{name: _DEEP_COMMON[name] for name in ("net_arch", "learning_rate", "discount")},
+    **_PPO,
+}
+
+
+def _shared_ppo(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
+    """PPO with one policy shared by every AUV (:mod:`rl.fleet`), trained in the task on the
+    task's layout with the task's seed, then acting for each AUV on its own observation."""
+    from rl.deep import train_deep
+    from rl.fleet import SharedPolicy, make_shared_vec_env
+
+    venv = make_shared_vec_env(settings["n_envs"], context.scenario)
+    hyperparams = {_SB3_NAMES.get(k, k): v for k, v in settings.items()
+                   if k not in ("timesteps", "n_envs", "net_arch") and v is not None}
+    result = train_deep("ppo", venv, settings["timesteps"], seed, hyperparams=hyperparams,
+                        policy_kwargs={"net_arch": list(settings["net_arch"])})
+    policy = SharedPolicy(result.model)
+    policy.train_seconds = result.train_seconds
+    return policy
+
+
+def _shared_ppo_record(policy: Any, env: Any) -> dict[str, Any]:
+    return {"train_seconds": getattr(policy, "train_seconds", None)}
+
+
+def _fleet_routing_record(policy: Any, env: Any) -> dict[str, Any]:
+    plan = getattr(policy, "plan_", None)
+    if plan is None:
+        return {}
+    return {"plan_status": plan.status,
+            "plan_details": {k: v for k, v in plan.details.items() if isinstance(v, (int, float, str, list))}}
+
+
+def _fleet_algorithms() -> tuple[Algorithm, ...]:
+    """The algorithms that run a fleet (docs/fleet.md)."""
+    from planners.fleet import FleetRoutingPlanner
+
+    return (
+        Algorithm("fleet_routing", "k-means + vehicle routing", "planner",
+                  declared(FleetRoutingPlanner, skip=("seed",), k={"hi_of": _n_nodes, "hi_doc": "n_nodes"}),
+                  _planner("FleetRoutingPlanner", seeded=True, module="planners.fleet"), _fleet_routing_record,
+                  fleet=True),
+        Algorithm("shared_ppo", "parameter-shared PPO", "rl", _SHARED_PPO, _shared_ppo, _shared_ppo_record,
+                  observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True),
+        Algorithm("fleet_q_learning", "independent Q-learning", "rl", {**_FLEET_TRAINING, **_TABULAR},
+                  _fleet_agents("q_learning"), observation="tabular", fleet=True),
+        Algorithm("fleet_random", "random (each AUV)", "rl", {}, _fleet_agents("random"), observation="tabular",
+                  fleet=True),
+    )
+
+
 ALGORITHMS: dict[str, Algorithm] = {
     a.name: a
     for a in (
@@ -681,6 +771,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             _milp,
             _milp_record,
         ),
+        *_fleet_algorithms(),
     )
 }
 
@@ -932,6 +1023,13 @@ def check_settings_for(name: str, settings: dict[str, Any], scenario: Any, where
     sweep point) for the message.
     """
     algorithm = get_algorithm(name)
+    n_auvs = getattr(scenario, "n_auvs", 1)
+    if n_auvs > 1 and not algorithm.fleet:
+        fleet = [n for n, a in ALGORITHMS.items() if a.fleet]
+        raise ConfigError(
+            f"algorithms.{name}: {algorithm.label} runs one AUV, and the scenario{where} has n_auvs = {n_auvs}: "
+            f"a fleet runs {', '.join(fleet)}", "n_auvs",
+        )
     if algorithm.check_scenario is not None:
         _plugin_code(name, "scenario check", algorithm.check_scenario, settings, scenario)
     for key, spec in algorithm.settings.items():

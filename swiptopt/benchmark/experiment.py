@@ -884,6 +884,32 @@ def technologies() -> Experiment:
     )
 
 
+#: The fleet suite's field (docs/fleet.md): the paper preset over four times its area
+#: (200 m x 200 m, 50 m deep), 60 nodes and 100 steps, more than one AUV can serve in an
+#: episode; fleets of 1, 2 and 4 AUVs, their default start cells spread across the surface.
+FLEET_SCENARIO = {"preset": "paper", "length_m": 200.0, "width_m": 200.0, "n_nodes": 60, "episode_steps": 100}
+FLEET_SIZES = [1, 2, 4]
+_FLEET_LAYOUTS = 4
+
+
+def fleet_suite() -> Experiment:
+    """The ``fleet`` experiment: k-means + vehicle routing against parameter-shared PPO,
+    independent Q-learning and random moves, for fleets of 1, 2 and 4 AUVs."""
+    return _builtin(
+        "fleet",
+        "fleets of 1, 2 and 4 AUVs on a field four times the paper's area (200 m x 200 m, 60 nodes, 100 steps): "
+        "k-means + OR-Tools vehicle routing against parameter-shared PPO (trained per layout), independent "
+        "Q-learning (one agent per AUV) and random moves (docs/fleet.md)",
+        scenario=FLEET_SCENARIO,
+        sweep={"n_auvs": FLEET_SIZES},
+        algorithms={"fleet_routing": {}, "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 10_000},
+                    "fleet_random": {}},
+        layouts=_FLEET_LAYOUTS,
+        episodes=10,
+        baseline="fleet_random",
+    )
+
+
 def builtin_experiments() -> dict[str, Experiment]:
     """The named experiments: ``compare`` (the standard suite), ``harbour`` (the continuous
     world's suite), ``generalisation`` and one per figure of the paper."""
@@ -953,6 +979,7 @@ def builtin_experiments() -> dict[str, Experiment]:
                 baseline="random",
             ),
             technologies(),
+            fleet_suite(),
             *learning_curves(),
             *paper_figures(),
         )

@@ -241,6 +241,54 @@ def links_figure(outdir: str | Path) -> list[Path]:
     return paths
 
 
+def fleet_routes_figure(outdir: str | Path, layout_seed: int = 0, sizes: tuple[int, ...] = (1, 2, 4)) -> list[Path]:
+    """The fleet suite's field (:data:`~swiptopt.benchmark.experiment.FLEET_SCENARIO`,
+    layout ``layout_seed``) seen from above, one panel per fleet size: the nodes (filled when
+    served at the end), each AUV's executed path under k-means + vehicle routing
+    (:class:`planners.fleet.FleetRoutingPlanner`, its default settings) in its own colour
+    from its start (a triangle), and the fleet's data and makespan in the title. The paths
+    go beside it as CSV (``fig-fleet-routes.csv``)."""
+    import matplotlib
+
+    from planners.fleet import FleetRoutingPlanner
+    from swiptopt import kernel as K
+    from swiptopt.benchmark.experiment import FLEET_SCENARIO
+    from swiptopt.env_fleet import AuvFleetEnv
+    from swiptopt.evaluation import evaluate_fleet
+    from swiptopt.scenario import Scenario
+
+    outdir = Path(outdir)
+    rows = []
+    with matplotlib.rc_context({"font.size": 7}):
+        fig = _figure(height_in=2.6)
+        for i, n_auvs in enumerate(sizes):
+            ax = fig.add_subplot(1, len(sizes), i + 1)
+            scenario = Scenario.from_dict({**FLEET_SCENARIO, "n_auvs": n_auvs, "layout_seed": layout_seed})
+            env = AuvFleetEnv(scenario)
+            record = evaluate_fleet(FleetRoutingPlanner(seed=0), env, 1, seed=0).records[0]
+            state, tables = env.fleet_state, env.fleet.tables
+            served = K.served_mask(state.data_left, state.energy, tables.capacity, tables.named.reward_weight)
+            nodes = scenario.layout.positions_m
+            ax.scatter(nodes[~served, 0], nodes[~served, 1], s=6, facecolors="none", edgecolors="0.4", lw=0.5)
+            ax.scatter(nodes[served, 0], nodes[served, 1], s=6, c="0.4")
+            for k, path in enumerate(env.paths):
+                xy = scenario.cell_centers_m[np.asarray(path, dtype=np.int64)]
+                line = ax.plot(xy[:, 0], xy[:, 1], lw=0.8)[0]
+                ax.scatter(xy[:1, 0], xy[:1, 1], marker="^", s=14, color=line.get_color())
+                rows += [[n_auvs, k, t, *map(float, p)] for t, p in enumerate(xy)]
+            ax.set_xlim(0, scenario.length_m)
+            ax.set_ylim(0, scenario.width_m)
+            ax.set_aspect("equal")
+            ax.set_xlabel("x (m)")
+            if i == 0:
+                ax.set_ylabel("y (m)")
+            ax.set_title(f"{n_auvs} AUV{'s' if n_auvs > 1 else ''}: {record['data_bits'] / 1e6:.2f} Mbit,\n"
+                         f"makespan {record['makespan_s']:.0f} s", fontsize=6)
+        paths = _save(fig, outdir, "fig-fleet-routes")
+    paths.append(_write_csv(outdir, "fig-fleet-routes.csv", ["n_auvs", "auv", "step", "x_m", "y_m", "depth_m"], rows))
+    return paths
+
+
 def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:

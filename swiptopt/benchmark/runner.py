@@ -138,10 +138,12 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     algorithm = get_algorithm(t.algorithm, t.plugin)  # registers a plugin in this process
     scenario = Scenario.from_dict(t.scenario)
     grid = t.world == GRID
-    # the continuous world has one observation (the vector); planners read the env itself
-    env = make_env(t.world, scenario, observation=(algorithm.observation or "tabular") if grid else None)
     training = tuple(t.training_layouts) if t.training_layouts is not None else None
     context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world, checkpoints, pretrained)
+    if algorithm.fleet:
+        return _run_fleet_task(t, task, algorithm, context, start)
+    # the continuous world has one observation (the vector); planners read the env itself
+    env = make_env(t.world, scenario, observation=(algorithm.observation or "tabular") if grid else None)
     policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
     result = evaluate(policy, env, t.episodes, seed=t.seed + EVALUATION_SEED_OFFSET)
     extra: dict[str, Any] = task_extra(t.algorithm, policy, env)
@@ -168,6 +170,25 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
         "task": task,
         "records": result.records,
         "extra": extra,
+        "duration_s": time.perf_counter() - start,
+    }
+
+
+def _run_fleet_task(t: Task, task: dict[str, Any], algorithm: Any, context: Any, start: float) -> dict[str, Any]:
+    """Run a fleet algorithm's task (docs/fleet.md): its policy in the fleet env, scored by
+    :func:`swiptopt.evaluation.evaluate_fleet` (the records hold the fleet's metrics)."""
+    from swiptopt.benchmark.algorithms import build_policy, task_extra
+    from swiptopt.env_fleet import AuvFleetEnv
+    from swiptopt.evaluation import evaluate_fleet
+
+    env = AuvFleetEnv(context.scenario, observation=algorithm.observation or "vector")
+    policy = build_policy(t.algorithm, env, t.settings, t.seed, context)
+    result = evaluate_fleet(policy, env, t.episodes, seed=t.seed + EVALUATION_SEED_OFFSET)
+    return {
+        "key": t.key,
+        "task": task,
+        "records": result.records,
+        "extra": task_extra(t.algorithm, policy, env),
         "duration_s": time.perf_counter() - start,
     }
 

@@ -1,0 +1,79 @@
+"""The fleet in the benchmark: fleet algorithms run in the fleet env, a fleet of one
+reproduces the single AUV's rows, single-AUV algorithms refuse a fleet before any task runs,
+and the fleet suite runs in --quick with the same table twice."""
+
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("pettingzoo")
+
+from swiptopt import ConfigError  # noqa: E402
+from swiptopt.benchmark import tables  # noqa: E402
+from swiptopt.benchmark.experiment import Experiment, builtin_experiments  # noqa: E402
+from swiptopt.benchmark.runner import execute, run_task  # noqa: E402
+from swiptopt.benchmark.store import ResultStore  # noqa: E402
+
+SMALL = {"preset": "paper", "n_nodes": 8, "episode_steps": 30}
+
+
+def _task(algorithm: str, scenario: dict, settings: dict | None = None, seed: int = 3) -> dict:
+    exp = Experiment(name="t", scenario=scenario, algorithms={algorithm: settings or {}}, layouts=1, episodes=3)
+    (task,) = exp.tasks()
+    return run_task(task.to_dict())
+
+
+def _metrics(records: list[dict]) -> list[dict]:
+    single = ("return", "data_bits", "energy_delivered_j", "auv_energy_j", "nodes_served", "length")
+    return [{k: r[k] for k in single} for r in records]
+
+
+@pytest.mark.parametrize(("single", "fleet", "settings"), [
+    ("random", "fleet_random", {}),
+    ("q_learning", "fleet_q_learning", {"train_episodes": 200}),
+])
+def test_a_fleet_of_one_reproduces_the_single_auvs_rows(single, fleet, settings):
+    # the same agent, seeded alike, in the fleet env of one AUV and in the single AUV's env:
+    # the same episodes (the compiled trainer and the fleet's Python loop draw alike)
+    one = _task(single, SMALL, settings)
+    many = _task(fleet, {**SMALL, "n_auvs": 1}, settings)
+    assert _metrics(one["records"]) == _metrics(many["records"])
+    assert [r["return_each"] for r in many["records"]] == [[r["return"]] for r in one["records"]]
+
+
+def test_n_auvs_one_keeps_every_single_auv_task_as_it_was():
+    compare = builtin_experiments()["compare"]
+    explicit = Experiment(**{**compare.to_dict(), "scenario": {**compare.scenario, "n_auvs": 1}})
+    assert [t.key for t in explicit.tasks()] == [t.key for t in compare.tasks()]
+
+
+def test_a_single_auv_algorithm_refuses_a_fleet_before_any_task_runs():
+    with pytest.raises(ConfigError, match="runs one AUV, and the scenario has n_auvs = 2") as err:
+        Experiment(name="t", scenario={**SMALL, "n_auvs": 2}, algorithms={"kmeans_tsp": {}})
+    assert err.value.field == "n_auvs"
+    with pytest.raises(ConfigError, match="at sweep point"):
+        Experiment(name="t", scenario=SMALL, sweep={"n_auvs": [1, 2]}, algorithms={"q_learning": {}})
+
+
+def test_the_fleet_suite_runs_quick_and_gives_the_same_table_twice(tmp_path):
+    suite = builtin_experiments()["fleet"].quick()
+    small = {**suite.to_dict(), "scenario": {**suite.scenario, "n_nodes": 12, "episode_steps": 40}, "layouts": 1}
+    small["algorithms"] = {**small["algorithms"], "fleet_q_learning": {"train_episodes": 200}}
+    suite = Experiment(**small)
+    texts = []
+    for name in ("a", "b"):
+        with ResultStore(tmp_path / f"{name}.sqlite") as store:
+            report = execute(suite, store, workers=1)
+            assert report.failures == ()
+            rows, _ = tables.aggregate(suite, store)
+            texts.append(tables.to_markdown(rows))
+            results = store.get(t.key for t in suite.tasks())
+    assert texts[0] == texts[1]
+    lines = texts[0].splitlines()
+    for label in ("k-means + vehicle routing", "parameter-shared PPO", "independent Q-learning", "random (each AUV)"):
+        assert sum(f"| {label} |" in line for line in lines) == 2  # at n_auvs = 1 and 2
+    # every AUV of a fleet of two has its own numbers, and they add up to the fleet's
+    twos = [r for r in results.values() if r["task"]["scenario"].get("n_auvs") == 2]
+    assert twos and all(len(rec["return_each"]) == 2 for r in twos for rec in r["records"])
+    assert all(abs(sum(rec["data_bits_each"]) - rec["data_bits"]) <= 1e-6 * max(1.0, rec["data_bits"])
+               for r in twos for rec in r["records"])
