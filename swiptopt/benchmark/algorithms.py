@@ -657,7 +657,7 @@ def _fleet_agents(algorithm: str) -> Callable[[Any, dict[str, Any], int, BuildCo
 #: Parameter-shared PPO's settings: the deep algorithms' and PPO's, ``n_envs`` counting
 #: copies of the fleet (each AUV of each copy is one sub-environment).
 _SHARED_PPO = {
-    "timesteps": Setting(default=524_288, kind="int", lo=1, hi=10**9, quick=1024,
+    "timesteps": Setting(default=262_144, kind="int", lo=1, hi=10**9, quick=1024,
                          doc="AUV steps of training, every AUV of every copy together (PPO collects whole "
                              "rollouts of n_envs x n_auvs x n_steps steps)"),
     "n_envs": Setting(default=8, kind="int", lo=1, hi=1024, quick=2,

@@ -902,7 +902,7 @@ def fleet_suite() -> Experiment:
         "Q-learning (one agent per AUV) and random moves (docs/fleet.md)",
         scenario=FLEET_SCENARIO,
         sweep={"n_auvs": FLEET_SIZES},
-        algorithms={"fleet_routing": {}, "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 10_000},
+        algorithms={"fleet_routing": {}, "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 5_000},
                     "fleet_random": {}},
         layouts=_FLEET_LAYOUTS,
         episodes=10,

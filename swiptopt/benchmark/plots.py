@@ -260,7 +260,7 @@ def fleet_routes_figure(outdir: str | Path, layout_seed: int = 0, sizes: tuple[i
     outdir = Path(outdir)
     rows = []
     with matplotlib.rc_context({"font.size": 7}):
-        fig = _figure(height_in=2.6)
+        fig = _figure(height_in=2.0)
         for i, n_auvs in enumerate(sizes):
             ax = fig.add_subplot(1, len(sizes), i + 1)
             scenario = Scenario.from_dict({**FLEET_SCENARIO, "n_auvs": n_auvs, "layout_seed": layout_seed})
