@@ -89,6 +89,18 @@ DISPLAY = (
     (GAP_BOUND, "gap to bound", 100.0, 0),
 )
 
+#: The fleet's own columns (docs/fleet.md), shown when some row has them.
+FLEET_DISPLAY = (
+    ("makespan_s", "makespan (s)", 1.0, 0),
+    ("jain_auv_energy", "Jain AUV energy", 1.0, 2),
+)
+
+
+def _display(rows: list[Row]) -> tuple[tuple[str, str, float, int], ...]:
+    """The columns of these rows: :data:`DISPLAY`, and the fleet's when some row has them."""
+    fleet = any(r.summaries.get(m) is not None for r in rows for m, *_ in FLEET_DISPLAY)
+    return DISPLAY + FLEET_DISPLAY if fleet else DISPLAY
+
 
 @dataclass(frozen=True)
 class Row:
@@ -238,8 +250,9 @@ def aggregate(experiment: Experiment, store: ResultStore | Stored) -> tuple[list
             found = list(by_seed.values())
             if not found:
                 continue
+            fleet = tuple(m for m, *_ in FLEET_DISPLAY if any(r["records"] and m in r["records"][0] for r in found))
             per_metric: dict[str, list[Any]] = {m: [_task_mean(r["records"], m) for r in found]
-                                                for m in EPISODE_METRICS}
+                                                for m in (*EPISODE_METRICS, *fleet)}
             gaps, optimum_gaps, used = [], [], []
             for seed, r in by_seed.items():
                 ret = _task_mean(r["records"], "return")
@@ -412,7 +425,7 @@ def _has_seed_spread(rows: list[Row]) -> bool:
 def _headings(rows: list[Row]) -> list[str]:
     has_point = any(r.point for r in rows)
     has_opt = any(GAP_OPTIMUM in r.summaries for r in rows)
-    heads = (["point"] if has_point else []) + ["algorithm", "rank"] + [h for _, h, _, _ in DISPLAY] + ["bound"]
+    heads = (["point"] if has_point else []) + ["algorithm", "rank"] + [h for _, h, _, _ in _display(rows)] + ["bound"]
     return heads + (["gap to optimum"] if has_opt else []) + (["return by seed"] if _has_seed_spread(rows) else [])
 
 
@@ -436,7 +449,7 @@ def _cells(row: Row, rows: list[Row]) -> list[str]:
     has_point = any(r.point for r in rows)
     has_opt = any(GAP_OPTIMUM in r.summaries for r in rows)
     out = ([_point_label(row.point)] if has_point else []) + [row.label, str(row.rank)]
-    for metric, _, scale, digits in DISPLAY:
+    for metric, _, scale, digits in _display(rows):
         text = _cell(row.summaries.get(metric), scale, digits)
         if metric == GAP_BOUND:
             text += (" %" if text != "n/a" else "") + _solver_cell(row)
