@@ -8,7 +8,11 @@ long to dwell there, with impossible and pointless choices masked, so that
   dwell, carried out as kernel steps by the planners' executors (shortest grid paths; the
   continuous tours' legs followed with :func:`swiptopt.continuous.action_towards`); the reward
   is the sum of those steps' kernel rewards. Their docstrings give the contract.
-- :func:`make_stop_env`: either, by world name.
+- :class:`FleetStopChoiceEnv` (grid world, over :class:`swiptopt.env_fleet.AuvFleetEnv`): one
+  policy decides every AUV's stops, one decision at a time (the AUVs whose assignment is done,
+  in AUV order); :class:`FleetStopChoicePolicy` plays a model trained on it as a fleet policy
+  (``begin_episode`` + ``act``, for :func:`swiptopt.evaluation.evaluate_fleet`).
+- :func:`make_stop_env`: either single-AUV environment, by world name.
 - :class:`StopChoicePolicy`: a trained model as a policy on the plain kernel env
   (``begin_episode`` + ``predict``), for :func:`swiptopt.evaluate` and the benchmark; it plays
   the very episodes the model plays in the stop environment.
@@ -26,6 +30,7 @@ from gymnasium.envs.registration import register, registry
 
 from planners.stops.base import CANDIDATE_FEATURES, DWELLS, MASKED_ACTIONS, Dwell, StopChoicePolicy, StopEpisode
 from planners.stops.continuous import ContinuousStopChoiceEnv, ContinuousStops, ContinuousStopSettings
+from planners.stops.fleet import FleetStopChoiceEnv, FleetStopChoicePolicy, FleetStopSettings
 from planners.stops.grid import CANDIDATES, GridStops, GridStopSettings, StopChoiceEnv, build_grid_stops
 from swiptopt.scenario import Scenario
 
@@ -65,6 +70,9 @@ __all__ = [
     "ContinuousStopSettings",
     "ContinuousStops",
     "Dwell",
+    "FleetStopChoiceEnv",
+    "FleetStopChoicePolicy",
+    "FleetStopSettings",
     "GridStopSettings",
     "GridStops",
     "StopChoiceEnv",

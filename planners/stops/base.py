@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -105,6 +105,20 @@ def layout_key(scenario: Any) -> str:
     """A scenario's identity for the caches of stops layouts (all its fields, the layout's
     included)."""
     return json.dumps(scenario.to_dict(), sort_keys=True, default=str)
+
+
+def cached_layout(layouts: dict[str, Any], scenario: Any, build: Callable[[], Any]) -> Any:
+    """The stops layout of ``scenario``'s node layout from ``layouts`` (a dict by
+    :func:`layout_key`), made by ``build()`` when it is not there; the last
+    :data:`~swiptopt.env.LAYOUT_CACHE_SIZE` used are kept, the least recently used dropped."""
+    key = layout_key(scenario)
+    layout = layouts.pop(key, None)
+    if layout is None:
+        layout = build()
+    layouts[key] = layout
+    if len(layouts) > LAYOUT_CACHE_SIZE:
+        layouts.pop(next(iter(layouts)))
+    return layout
 
 
 # ----------------------------------------------------------------------------- one episode
@@ -292,10 +306,7 @@ class StopEnvBase(gym.Env):
         self.scenario = self.env.scenario
         n_candidates = self.n_candidates
         self.action_space = spaces.Discrete(n_candidates * len(self.settings.dwells) + 1)
-        base = self.env.observation_space.shape[0]
-        self.observation_space = spaces.Box(
-            -1.0, 1.0, (base + CANDIDATE_FEATURES * n_candidates,), dtype=np.float32
-        )
+        self.observation_space = spaces.Box(-1.0, 1.0, (self._observation_size(),), dtype=np.float32)
         self._layouts: dict[str, Any] = {}
         self._episode: StopEpisode | None = None
         self._done = True
@@ -305,6 +316,11 @@ class StopEnvBase(gym.Env):
     @property
     def n_candidates(self) -> int:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def _observation_size(self) -> int:
+        """The length of the observation: the kernel's vector observation, then
+        :data:`CANDIDATE_FEATURES` per candidate (a fleet's env adds its other AUVs)."""
+        return int(self.env.observation_space.shape[0]) + CANDIDATE_FEATURES * self.n_candidates
 
     @classmethod
     def build_layout(cls, env: Any, settings: Any) -> Any:  # pragma: no cover - abstract
@@ -316,14 +332,7 @@ class StopEnvBase(gym.Env):
     def stops_layout(self) -> Any:
         """The stops layout of the current node layout (built once, the last
         :data:`~swiptopt.env.LAYOUT_CACHE_SIZE` kept)."""
-        key = layout_key(self.env.scenario)
-        layout = self._layouts.pop(key, None)
-        if layout is None:
-            layout = self.build_layout(self.env, self.settings)
-        self._layouts[key] = layout
-        if len(self._layouts) > LAYOUT_CACHE_SIZE:
-            self._layouts.pop(next(iter(self._layouts)))
-        return layout
+        return cached_layout(self._layouts, self.env.scenario, lambda: self.build_layout(self.env, self.settings))
 
     # ------------------------------------------------------------------ gym API
 

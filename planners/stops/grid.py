@@ -7,7 +7,7 @@ The candidate stops of a layout (:func:`build_grid_stops`), the executor of one 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -132,8 +132,11 @@ class GridStops:
         return out
 
 
-def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSettings) -> GridStops:
-    """The candidate stops of ``scenario``'s layout (``tables`` its kernel tables).
+def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSettings,
+                     starts: Iterable[int] | None = None) -> GridStops:
+    """The candidate stops of ``scenario``'s layout (``tables`` its kernel tables), over the
+    cells reachable from ``tables.start_cell`` (or, given ``starts``, from any of those cells:
+    a fleet's start cells).
 
     Node i's own stop is the reachable cell where one step earns the most reward from node i
     in the per-step model (:func:`planners.service.step_model`: the kernel's amounts, expected
@@ -144,7 +147,7 @@ def build_grid_stops(tables: K.Tables, scenario: Scenario, settings: GridStopSet
     cell covers has no stop; a stop on the cell of an earlier candidate is a copy and does not
     exist either (so no two actions do the same thing).
     """
-    where = reachable(tables)
+    where = reachable(tables, starts)
     model = step_model(where.tables)
     n = tables.n_nodes
     own, shared = _best_cells(model, n, settings.shared_fraction)

@@ -687,6 +687,39 @@ def _shared_ppo_record(policy: Any, env: Any) -> dict[str, Any]:
     return {"train_seconds": getattr(policy, "train_seconds", None)}
 
 
+#: The fleet's stop-choosing PPO: the single agent's settings, ``timesteps`` counting every
+#: AUV's decisions.
+_FLEET_STOP_PPO = {
+    **{name: _STOP_PPO[name] for name in ("n_envs", "net_arch", "learning_rate", "discount", "candidates")},
+    **{name: _STOP_PPO[name] for name in _PPO},
+    "timesteps": Setting(default=65_536, kind="int", lo=1, hi=10**9, quick=256,
+                         doc="decisions of training, every AUV's of every copy together (each a stop and its "
+                             "dwell: several kernel steps)"),
+}
+
+
+def _fleet_stop_ppo(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
+    """MaskablePPO on the fleet's stop-choosing environment (:class:`planners.stops.FleetStopChoiceEnv`:
+    one policy makes every AUV's decisions), trained in the task on the task's layout with the
+    task's seed on ``n_envs`` copies, then played on the fleet env."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from planners.stops import FleetStopChoiceEnv, FleetStopChoicePolicy
+    from rl.deep import train_deep
+
+    def make() -> Any:
+        return FleetStopChoiceEnv(context.scenario, candidates=settings["candidates"])
+
+    venv = DummyVecEnv([make for _ in range(settings["n_envs"])])
+    hyperparams = {_SB3_NAMES.get(k, k): v for k, v in settings.items()
+                   if k not in ("timesteps", "n_envs", "net_arch", "candidates") and v is not None}
+    result = train_deep("maskable_ppo", venv, settings["timesteps"], seed, hyperparams=hyperparams,
+                        policy_kwargs={"net_arch": list(settings["net_arch"])})
+    policy = FleetStopChoicePolicy.from_env(result.model, venv.envs[0])
+    policy.train_seconds = result.train_seconds
+    return policy
+
+
 def _fleet_routing_record(policy: Any, env: Any) -> dict[str, Any]:
     plan = getattr(policy, "plan_", None)
     if plan is None:
@@ -706,6 +739,8 @@ def _fleet_algorithms() -> tuple[Algorithm, ...]:
                   fleet=True),
         Algorithm("shared_ppo", "parameter-shared PPO", "rl", _SHARED_PPO, _shared_ppo, _shared_ppo_record,
                   observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True),
+        Algorithm("fleet_stop_ppo", "stop-choosing PPO (fleet)", "rl", _FLEET_STOP_PPO, _fleet_stop_ppo,
+                  _shared_ppo_record, modules=(*_DEEP_MODULES, "sb3_contrib"), trains_model=True, fleet=True),
         Algorithm("fleet_q_learning", "independent Q-learning", "rl", {**_FLEET_TRAINING, **_TABULAR},
                   _fleet_agents("q_learning"), observation="tabular", fleet=True),
         Algorithm("fleet_random", "random (each AUV)", "rl", {}, _fleet_agents("random"), observation="tabular",

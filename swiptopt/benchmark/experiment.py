@@ -893,17 +893,19 @@ _FLEET_LAYOUTS = 4
 
 
 def fleet_suite() -> Experiment:
-    """The ``fleet`` experiment: k-means + vehicle routing against parameter-shared PPO,
-    independent Q-learning and random moves, for fleets of 1, 2 and 4 AUVs."""
+    """The ``fleet`` experiment: k-means + vehicle routing against the stop-choosing PPO and
+    parameter-shared PPO (one policy for every AUV), independent Q-learning and random moves,
+    for fleets of 1, 2 and 4 AUVs."""
     return _builtin(
         "fleet",
         "fleets of 1, 2 and 4 AUVs on a field four times the paper's area (200 m x 200 m, 60 nodes, 100 steps): "
-        "k-means + OR-Tools vehicle routing against parameter-shared PPO (trained per layout), independent "
-        "Q-learning (one agent per AUV) and random moves (docs/fleet.md)",
+        "k-means + OR-Tools vehicle routing against the stop-choosing PPO and parameter-shared PPO (one policy "
+        "for every AUV, trained per layout), independent Q-learning (one agent per AUV) and random moves "
+        "(docs/fleet.md)",
         scenario=FLEET_SCENARIO,
         sweep={"n_auvs": FLEET_SIZES},
-        algorithms={"fleet_routing": {}, "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 5_000},
-                    "fleet_random": {}},
+        algorithms={"fleet_routing": {}, "fleet_stop_ppo": {}, "shared_ppo": {},
+                    "fleet_q_learning": {"train_episodes": 5_000}, "fleet_random": {}},
         layouts=_FLEET_LAYOUTS,
         episodes=10,
         baseline="fleet_random",

@@ -71,7 +71,9 @@ def test_the_fleet_suite_runs_quick_and_gives_the_same_table_twice(tmp_path):
     assert texts[0] == texts[1]
     lines = texts[0].splitlines()
     assert "| makespan (s) | Jain AUV energy |" in lines[0]
-    for label in ("k-means + vehicle routing", "parameter-shared PPO", "independent Q-learning", "random (each AUV)"):
+    labels = ("k-means + vehicle routing", "stop-choosing PPO (fleet)", "parameter-shared PPO",
+              "independent Q-learning", "random (each AUV)")
+    for label in labels:
         assert sum(f"| {label} |" in line for line in lines) == 2  # at n_auvs = 1 and 2
     # every AUV of a fleet of two has its own numbers, and they add up to the fleet's
     twos = [r for r in results.values() if r["task"]["scenario"].get("n_auvs") == 2]
