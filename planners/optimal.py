@@ -61,14 +61,19 @@ both minima (a relaxation: every real stretch needs at least as many moves and a
 much penalty), the duration may fall short of the episode, and the bound stays valid; the
 plan follows the least-penalty paths and its ``objective`` is what it really earns
 (:meth:`planners.service.StepModel.walk_return`), so the status is at best ``feasible``.
+
+**Fleets.** The program is built for a list of walks sharing the service (one here);
+:mod:`planners.fleet_optimal` builds it with one walk per AUV from the same pieces, and
+with one AUV gets this module's program column for column.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -241,9 +246,11 @@ def solve_optimum(
         )
 
 
-def unsupported_reason(scenario: Scenario, tables: K.Tables) -> str:
+def unsupported_reason(scenario: Scenario, tables: K.Tables, batteries_j: Sequence[float] | None = None) -> str:
     """Why the model cannot express the scenario ('' when it can); the time-indexed
-    programs of :mod:`planners.hindsight` share these limits."""
+    programs of :mod:`planners.hindsight` and the fleet's (:mod:`planners.fleet_optimal`)
+    share these limits. ``batteries_j``: each AUV's battery when not the scenario's one
+    ``battery_j`` (a fleet's)."""
     p = tables.named
     if scenario.link == "uplink":
         return (
@@ -258,9 +265,12 @@ def unsupported_reason(scenario: Scenario, tables: K.Tables) -> str:
             "so its data depends on the order of service"
         )
     worst = float(tables.propulsion_j.max()) + p.hotel_j + p.projector_j
-    if worst * p.steps >= p.battery_j:
+    name, battery = "battery_j", p.battery_j
+    if batteries_j is not None:
+        name, battery = "auv_batteries_j", min(batteries_j)
+    if worst * p.steps >= battery:
         return (
-            f"battery_j = {p.battery_j:g}: the battery may run out within the episode "
+            f"{name} = {battery:g}: the battery may run out within the episode "
             f"(up to {worst * p.steps:g} J), which the model does not track"
         )
     return ""
@@ -370,23 +380,41 @@ class _ReducedGraph:
 
 # --------------------------------------------------------------------------- the program
 
+#: A walk's own column blocks, in their order in the program.
+_WALK_BLOCKS = ("x", "h", "y", "z", "g", "fd", "fe")
+
 
 @dataclass(eq=False)
-class _Program:
-    """The MILP's columns (named blocks), bounds, objective and constraint rows."""
+class _WalkColumns:
+    """One walk's part of a program: its columns and its (vertex, node) service pairs."""
 
     blocks: dict[str, slice]
-    """Column block of each variable family: x, h, y, z, g, fd, fe, u, w, q, slack."""
-    nodes: np.ndarray
-    """Coverable nodes (the ones with service variables), in the order of u and w."""
+    """Column block of each variable family the walk reads: its own x, h, y, z, g, fd, fe
+    and slack, and the service variables u, w and q that every walk shares."""
     pair_vertex: np.ndarray
     """(P,) vertex of each (vertex, node) service pair, the order of fd and fe."""
     pair_node: np.ndarray
-    """(P,) position of its node in ``nodes``."""
+    """(P,) position of its node in the program's ``nodes``."""
     pair_data: np.ndarray
     """(P,) one step's data as a fraction of the node's data."""
     pair_energy: np.ndarray
     """(P,) one step's energy as a fraction of the node's free storage (0 if none)."""
+
+    @property
+    def starts(self) -> dict[str, int]:
+        """The first column of each block."""
+        return {name: b.start for name, b in self.blocks.items()}
+
+
+@dataclass(eq=False)
+class _Program:
+    """The MILP's columns (named blocks, per walk), bounds, objective and constraint rows."""
+
+    walks: list[_WalkColumns]
+    """Each walk's columns: one for the single AUV, one per AUV for a fleet
+    (:mod:`planners.fleet_optimal`)."""
+    nodes: np.ndarray
+    """Coverable nodes (the ones with service variables), in the order of u and w."""
     cost: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
@@ -394,6 +422,11 @@ class _Program:
     a_rows: Any
     row_lower: np.ndarray
     row_upper: np.ndarray
+
+    @property
+    def blocks(self) -> dict[str, slice]:
+        """The first walk's column blocks (the single AUV's: every column)."""
+        return self.walks[0].blocks
 
 
 class _Rows:
@@ -431,37 +464,69 @@ class _Rows:
         return m, np.concatenate(self.lo), np.concatenate(self.hi)
 
 
-def _program(model: StepModel, graph: _ReducedGraph) -> _Program:
-    """The MILP of the module docstring over ``graph``: its columns, then its rows block by
-    block (the walk, the service, the visits and their connectivity)."""
+def _program(
+    model: StepModel, graphs: list[_ReducedGraph], *, stay_cost: np.ndarray | None = None,
+    extra_rows: Callable[[_Rows, list[_WalkColumns]], None] | None = None,
+) -> _Program:
+    """The MILP of the module docstring with one walk over each of ``graphs`` (each graph's
+    vertex 0 its walk's start) and the service shared: its columns, then its rows block by
+    block (each walk, each walk's service pairs, the nodes, each walk's visits and their
+    connectivity, then ``extra_rows``). One graph gives the single AUV's program; a fleet's
+    (:mod:`planners.fleet_optimal`) has one per AUV. ``stay_cost``: (n_cells,) the penalty
+    of a hover, when not the model's cheapest stay."""
     T = model.steps
-    A, V = graph.n_arcs, len(graph.vertices)
     nodes = np.flatnonzero(model.coverable())
-    N = len(nodes)
-    room = model.room_j[nodes]
-    pair_vertex, pair_node, pair_data, pair_energy = _pairs(model, graph, nodes)
-    P = len(pair_vertex)
-
-    sizes = dict(x=A, h=V, y=V, z=V, g=A, fd=P, fe=P, u=N, w=N, q=1, slack=1)
-    edges = np.cumsum([0] + list(sizes.values()))
-    blocks = {name: slice(int(edges[i]), int(edges[i + 1])) for i, name in enumerate(sizes)}
-    ix = {name: b.start for name, b in blocks.items()}
-    n_cols = int(edges[-1])
-    reach = T - np.where(np.isfinite(graph.from_start), graph.from_start, T + 1)  # steps left on arrival
-    k_flow = float(min(V - 1, T))
-    cost, lower, upper, integer = _columns(model, graph, nodes, pair_energy, blocks, n_cols, reach, k_flow)
+    walks, n_cols = _layout(model, graphs, nodes)
+    cost, lower, upper = np.zeros(n_cols), np.zeros(n_cols), np.zeros(n_cols)
+    integer = np.zeros(n_cols, dtype=bool)
+    stays = model.stay_cost if stay_cost is None else stay_cost
+    # steps left on arrival at each vertex, and the most commodity an arc can carry
+    reach = [T - np.where(np.isfinite(g.from_start), g.from_start, T + 1) for g in graphs]
+    k_flow = [float(min(len(g.vertices) - 1, T)) for g in graphs]
+    for graph, walk, r, k in zip(graphs, walks, reach, k_flow):
+        _walk_columns(model, graph, walk, r, k, stays, (cost, lower, upper, integer))
+    _service_columns(model, graphs[0], nodes, walks[0].blocks, (cost, lower, upper, integer))
 
     rows = _Rows()
-    into = _arcs_into(graph)
-    _walk_rows(rows, model, graph, ix)
-    _service_rows(rows, model, ix, into, room, pair_vertex, pair_node, pair_data, pair_energy)
-    _visit_rows(rows, graph, ix, into, reach, k_flow)
+    into = [_arcs_into(graph) for graph in graphs]
+    for graph, walk in zip(graphs, walks):
+        _walk_rows(rows, model, graph, walk.starts)
+    for walk, arcs_in in zip(walks, into):
+        _pair_rows(rows, walk, arcs_in)
+    _node_rows(rows, model, model.room_j[nodes], walks)
+    for graph, walk, arcs_in, r, k in zip(graphs, walks, into, reach, k_flow):
+        _visit_rows(rows, graph, walk.starts, arcs_in, r, k)
+    if extra_rows is not None:
+        extra_rows(rows, walks)
 
     matrix, row_lower, row_upper = rows.matrix(n_cols)
-    return _Program(
-        blocks, nodes, pair_vertex, pair_node, pair_data, pair_energy,
-        cost, lower, upper, integer, matrix, row_lower, row_upper,
-    )
+    return _Program(walks, nodes, cost, lower, upper, integer, matrix, row_lower, row_upper)
+
+
+def _layout(model: StepModel, graphs: list[_ReducedGraph], nodes: np.ndarray) -> tuple[list[_WalkColumns], int]:
+    """Each walk's columns and the number of columns: every walk's own blocks in turn, then
+    the shared u, w and q, then each walk's slack (one walk: x, h, y, z, g, fd, fe, u, w, q,
+    slack, the single AUV's order)."""
+    pairs = [_pairs(model, graph, nodes) for graph in graphs]
+    at = 0
+    own: list[dict[str, slice]] = []
+    for graph, (pair_vertex, *_) in zip(graphs, pairs):
+        A, V, P = graph.n_arcs, len(graph.vertices), len(pair_vertex)
+        blocks = {}
+        for name, size in zip(_WALK_BLOCKS, (A, V, V, V, A, P, P)):
+            blocks[name] = slice(at, at + size)
+            at += size
+        own.append(blocks)
+    shared = {}
+    for name, size in (("u", len(nodes)), ("w", len(nodes)), ("q", 1)):
+        shared[name] = slice(at, at + size)
+        at += size
+    walks = []
+    for k, (blocks, walk_pairs) in enumerate(zip(own, pairs)):
+        blocks.update(shared)
+        blocks["slack"] = slice(at + k, at + k + 1)
+        walks.append(_WalkColumns(blocks, *walk_pairs))
+    return walks, at + len(graphs)
 
 
 def _pairs(model: StepModel, graph: _ReducedGraph, nodes: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -484,42 +549,47 @@ def _pairs(model: StepModel, graph: _ReducedGraph, nodes: np.ndarray) -> tuple[n
     return pair_vertex, pair_node, pair_data, pair_energy
 
 
-def _columns(
-    model: StepModel, graph: _ReducedGraph, nodes: np.ndarray, pair_energy: np.ndarray, blocks: dict[str, slice],
-    n_cols: int, reach: np.ndarray, k_flow: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The columns' objective, lower and upper bounds and integrality."""
+def _walk_columns(
+    model: StepModel, graph: _ReducedGraph, walk: _WalkColumns, reach: np.ndarray, k_flow: float,
+    stay_cost: np.ndarray, arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """One walk's columns in ``arrays`` (objective, lower and upper bounds, integrality)."""
+    cost, lower, upper, integer = arrays
+    b = walk.blocks
     T = model.steps
+    cost[b["x"]] = -graph.cost
+    cost[b["h"]] = -stay_cost[graph.vertices]
+    upper[b["x"]] = np.floor(T / graph.moves)
+    upper[b["h"]] = np.maximum(reach, 0)
+    upper[b["y"]] = reach >= 0
+    upper[b["z"]] = reach >= 0
+    z = b["z"].start
+    lower[z] = upper[z] = 1.0  # the start is where the walk begins
+    upper[b["g"]] = np.where(graph.head == 0, 0.0, k_flow * upper[b["x"]])
+    upper[b["fd"]] = 1.0
+    upper[b["fe"]] = walk.pair_energy > 0
+    upper[b["slack"]] = T
+    for name in ("x", "h", "y", "z"):
+        integer[b[name]] = True
+
+
+def _service_columns(
+    model: StepModel, graph: _ReducedGraph, nodes: np.ndarray, blocks: dict[str, slice],
+    arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """The shared service columns u, w and q in ``arrays`` (``graph``: any walk's, for
+    whether the model is exact)."""
+    cost, _, upper, integer = arrays
     data = model.data_bits[nodes]
     room = model.room_j[nodes]
     can_stop_early = graph.exact and model.can_finish_early()
-
-    cost = np.zeros(n_cols)
-    cost[blocks["x"]] = -graph.cost
-    cost[blocks["h"]] = -model.stay_cost[graph.vertices]
     # service variables are fractions of each node's data and free storage (well scaled)
     cost[blocks["u"]] = model.data_weight * data
     cost[blocks["w"]] = model.energy_weight * room
-
-    lower = np.zeros(n_cols)
-    upper = np.zeros(n_cols)
-    upper[blocks["x"]] = np.floor(T / graph.moves)
-    upper[blocks["h"]] = np.maximum(reach, 0)
-    upper[blocks["y"]] = reach >= 0
-    upper[blocks["z"]] = reach >= 0
-    z = blocks["z"].start
-    lower[z] = upper[z] = 1.0  # the start is where the walk begins
-    upper[blocks["g"]] = np.where(graph.head == 0, 0.0, k_flow * upper[blocks["x"]])
-    upper[blocks["fd"]] = 1.0
-    upper[blocks["fe"]] = pair_energy > 0
     upper[blocks["u"]] = 1.0
     upper[blocks["w"]] = room > 0
     upper[blocks["q"]] = 1.0 if can_stop_early else 0.0
-    upper[blocks["slack"]] = T
-    integer = np.zeros(n_cols, dtype=bool)
-    for name in ("x", "h", "y", "z", "q"):
-        integer[blocks[name]] = True
-    return cost, lower, upper, integer
+    integer[blocks["q"]] = True
 
 
 def _walk_rows(rows: _Rows, model: StepModel, graph: _ReducedGraph, ix: dict[str, int]) -> None:
@@ -543,16 +613,15 @@ def _walk_rows(rows: _Rows, model: StepModel, graph: _ReducedGraph, ix: dict[str
         rows.put(rows.add(1, -np.inf, 0.0), [ix["slack"], ix["q"]], [1.0, -float(T)])
 
 
-def _service_rows(
-    rows: _Rows, model: StepModel, ix: dict[str, int], into: list[np.ndarray], room: np.ndarray,
-    pair_vertex: np.ndarray, pair_node: np.ndarray, pair_data: np.ndarray, pair_energy: np.ndarray,
-) -> None:
-    """What each pair and node receives, and every node served when the walk stops early."""
-    P, N = len(pair_vertex), len(room)
-    pairs, nn = np.arange(P), np.arange(N)
-    # service per pair: at most what its steps deliver, and at most everything, only if visited
-    # (sum over v of min(n_v a_vi, z_v) >= min(1, sum over v of n_v a_vi) for whole counts)
-    for name, amount in (("fd", pair_data), ("fe", pair_energy)):
+def _pair_rows(rows: _Rows, walk: _WalkColumns, into: list[np.ndarray]) -> None:
+    """What each of a walk's (vertex, node) pairs delivers: at most what its steps there
+    deliver, at most everything, and only if the vertex is visited (sum over v of
+    min(n_v a_vi, z_v) >= min(1, sum over v of n_v a_vi) for whole counts)."""
+    ix = walk.starts
+    pair_vertex = walk.pair_vertex
+    P = len(pair_vertex)
+    pairs = np.arange(P)
+    for name, amount in (("fd", walk.pair_data), ("fe", walk.pair_energy)):
         first = rows.add(P, -np.inf, 0.0)
         rows.put(first + pairs, ix[name] + pairs, 1.0)
         rows.put(first + pairs, ix["h"] + pair_vertex, -amount)
@@ -563,10 +632,19 @@ def _service_rows(
         first = rows.add(P, -np.inf, 0.0)
         rows.put(first + pairs, ix[name] + pairs, 1.0)
         rows.put(first + pairs, ix["z"] + pair_vertex, -1.0)
+
+
+def _node_rows(rows: _Rows, model: StepModel, room: np.ndarray, walks: list[_WalkColumns]) -> None:
+    """What each node receives (at most what every walk's pairs of it deliver together),
+    and every node served when the walks stop early."""
+    N = len(room)
+    nn = np.arange(N)
+    ix = walks[0].starts  # u, w and q are every walk's
     for name, per_pair in (("u", "fd"), ("w", "fe")):
         first = rows.add(N, -np.inf, 0.0)
         rows.put(first + nn, ix[name] + nn, 1.0)
-        rows.put(first + pair_node, ix[per_pair] + pairs, -1.0)
+        for walk in walks:
+            rows.put(first + walk.pair_node, walk.starts[per_pair] + np.arange(len(walk.pair_node)), -1.0)
     # every node served when the walk stops early
     first = rows.add(N, -np.inf, 0.0)
     rows.put(first + nn, ix["q"], 1.0)
@@ -654,12 +732,10 @@ def _highs(program: _Program, budget: MilpBudget, *, relax: bool, time_limit_s: 
 
 
 def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: float) -> OptimumResult:
-    import highspy
-
-    program = _program(model, graph)
+    program = _program(model, [graph])
     cols = program.blocks
     exact = bool(model.exact and graph.exact)
-    lp_bound, cuts, lp_time = _relaxation_bound(program, graph, budget)
+    lp_bound, cuts, lp_time = _relaxation_bound(program, [graph], budget)
 
     from planners.rate_greedy import rate_greedy_actions
     from planners.walk_search import polish_walk
@@ -667,6 +743,61 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
     greedy_actions = rate_greedy_actions(model)
     warm_actions = polish_walk(model, greedy_actions, max_evaluations=budget.polish_evaluations, seed=budget.seed)
     warm = _warm_start(model, graph, program, warm_actions)
+    run = _branch(program, budget, started, cuts, warm)
+    wall = time.perf_counter() - started
+    details = {
+        **_size_details(program, [graph], cuts, run),
+        "rate_greedy_return": model.walk_return(greedy_actions)[0],
+        "warm_start_return": model.walk_return(warm_actions)[0],
+        "deterministic": bool(model.exact),
+        "can_end_early": bool(model.can_finish_early()),
+    }
+    if run.values is None:
+        return _unsolved(OptimumResult, run, lp_bound, lp_time, exact, wall, details)
+    x = np.rint(run.values[cols["x"]]).astype(np.int64)
+    hov = np.rint(run.values[cols["h"]]).astype(np.int64)
+    actions = _trail_actions(model, graph, x, hov)
+    objective, used = model.walk_return(actions)
+    details["plan"] = "milp"
+    warm_value, warm_used = model.walk_return(warm_actions)
+    if warm_value > objective:  # only possible with relaxed arcs (a current)
+        actions, objective, used, details["plan"] = warm_actions, warm_value, warm_used, "warm start"
+    bound = _final_bound(run, lp_bound)
+    details["highs_objective"] = run.objective
+    details["steps_run"] = used
+    state, message = _verdict(model, graph, budget, objective, bound, run.optimal)
+    if run.time_hit:
+        message += _time_note(budget)
+    return OptimumResult(
+        state, message, objective, bound, lp_bound, lp_time, actions, exact, run.nodes, run.time_hit, wall, details
+    )
+
+
+class _MipRun(NamedTuple):
+    """How a branch-and-bound run ended."""
+
+    values: np.ndarray | None
+    """The incumbent's column values (None: no feasible point found)."""
+    highs_status: str
+    optimal: bool
+    infeasible: bool
+    time_hit: bool
+    """Whether the safety time limit stopped the search."""
+    nodes: int
+    dual_bound: float
+    """HiGHS's dual bound (may be infinite)."""
+    objective: float
+    """HiGHS's value of the incumbent."""
+
+
+def _branch(
+    program: _Program, budget: MilpBudget, started: float, cuts: list[tuple[np.ndarray, np.ndarray]],
+    warm: np.ndarray | None,
+) -> _MipRun:
+    """Branch and bound on ``program`` with the connectivity ``cuts`` of its relaxation and the
+    feasible point ``warm`` (if any), within the budget and what is left of its time limit."""
+    import highspy
+
     left = max(budget.time_limit_s - (time.perf_counter() - started), 1e-3)
     h = _highs(program, budget, relax=False, time_limit_s=left)
     _add_cuts(h, cuts)
@@ -678,64 +809,74 @@ def _solve(model: StepModel, graph: _ReducedGraph, budget: MilpBudget, started: 
     h.run()
     status = h.getModelStatus()
     info = h.getInfo()
-    nodes = int(info.mip_node_count)
-    time_hit = status == highspy.HighsModelStatus.kTimeLimit
-    wall = time.perf_counter() - started
-    details = {
-        "vertices": len(graph.vertices),
-        "arcs": graph.n_arcs,
-        "rows": len(program.row_lower),
-        "columns": len(program.cost),
-        "highs_status": h.modelStatusToString(status),
-        "cuts": len(cuts),
-        "rate_greedy_return": model.walk_return(greedy_actions)[0],
-        "warm_start_return": model.walk_return(warm_actions)[0],
-        "deterministic": bool(model.exact),
-        "can_end_early": bool(model.can_finish_early()),
-    }
-    if info.primal_solution_status != highspy.kSolutionStatusFeasible:
-        message = f"no walk found within the budget (HiGHS: {details['highs_status']})"
-        if status == highspy.HighsModelStatus.kInfeasible:
-            message = "the program is infeasible, which a correct model never is"
-            return OptimumResult("error", message, None, None, lp_bound, lp_time, exact=exact, nodes=nodes,
-                                 time_limit_hit=time_hit, wall_s=wall, details=details)
-        return OptimumResult("no_solution", message, None, _dual_bound(info, lp_bound), lp_bound, lp_time,
-                             exact=exact, nodes=nodes, time_limit_hit=time_hit, wall_s=wall, details=details)
-    values = np.asarray(h.getSolution().col_value)
-    x = np.rint(values[cols["x"]]).astype(np.int64)
-    hov = np.rint(values[cols["h"]]).astype(np.int64)
-    actions = _trail_actions(model, graph, x, hov)
-    objective, used = model.walk_return(actions)
-    details["plan"] = "milp"
-    warm_value, warm_used = model.walk_return(warm_actions)
-    if warm_value > objective:  # only possible with relaxed arcs (a current)
-        actions, objective, used, details["plan"] = warm_actions, warm_value, warm_used, "warm start"
-    bound = _dual_bound(info, lp_bound)
-    if bound is not None and lp_bound is not None:
-        bound = min(bound, lp_bound)
-    details["highs_objective"] = float(info.objective_function_value)
-    details["steps_run"] = used
-    state, message = _verdict(model, graph, budget, objective, bound, status == highspy.HighsModelStatus.kOptimal)
-    if time_hit:
-        message += (f"; the safety time limit ({budget.time_limit_s:g} s) was hit, "
-                    "so this result depends on the machine's speed")
-    return OptimumResult(
-        state, message, objective, bound, lp_bound, lp_time, actions, exact, nodes, time_hit, wall, details
+    found = info.primal_solution_status == highspy.kSolutionStatusFeasible
+    return _MipRun(
+        values=np.asarray(h.getSolution().col_value) if found else None,
+        highs_status=h.modelStatusToString(status),
+        optimal=status == highspy.HighsModelStatus.kOptimal,
+        infeasible=status == highspy.HighsModelStatus.kInfeasible,
+        time_hit=status == highspy.HighsModelStatus.kTimeLimit,
+        nodes=int(info.mip_node_count),
+        dual_bound=float(info.mip_dual_bound),
+        objective=float(info.objective_function_value),
     )
 
 
+def _size_details(
+    program: _Program, graphs: list[_ReducedGraph], cuts: list[tuple[np.ndarray, np.ndarray]], run: _MipRun
+) -> dict[str, Any]:
+    """The program's size (vertices and arcs summed over its walks) and how HiGHS ended."""
+    return {
+        "vertices": sum(len(graph.vertices) for graph in graphs),
+        "arcs": sum(graph.n_arcs for graph in graphs),
+        "rows": len(program.row_lower),
+        "columns": len(program.cost),
+        "highs_status": run.highs_status,
+        "cuts": len(cuts),
+    }
+
+
+def _unsolved(
+    result_type: Any, run: _MipRun, lp_bound: float | None, lp_time: float | None, exact: bool, wall: float,
+    details: dict[str, Any],
+) -> Any:
+    """The result (of ``result_type``, :class:`OptimumResult` or one with its fields) of a
+    run that found no plan: ``error`` if the program is infeasible, else ``no_solution``."""
+    if run.infeasible:
+        message = "the program is infeasible, which a correct model never is"
+        return result_type("error", message, None, None, lp_bound, lp_time, exact=exact, nodes=run.nodes,
+                           time_limit_hit=run.time_hit, wall_s=wall, details=details)
+    message = f"no walk found within the budget (HiGHS: {run.highs_status})"
+    return result_type("no_solution", message, None, _dual_bound(run.dual_bound, lp_bound), lp_bound, lp_time,
+                       exact=exact, nodes=run.nodes, time_limit_hit=run.time_hit, wall_s=wall, details=details)
+
+
+def _final_bound(run: _MipRun, lp_bound: float | None) -> float | None:
+    """The tighter of the branch-and-bound's dual bound and the cut rounds' bound."""
+    bound = _dual_bound(run.dual_bound, lp_bound)
+    if bound is not None and lp_bound is not None:
+        bound = min(bound, lp_bound)
+    return bound
+
+
+def _time_note(budget: MilpBudget) -> str:
+    return (f"; the safety time limit ({budget.time_limit_s:g} s) was hit, "
+            "so this result depends on the machine's speed")
+
+
 def _relaxation_bound(
-    program: _Program, graph: _ReducedGraph, budget: MilpBudget
+    program: _Program, graphs: list[_ReducedGraph], budget: MilpBudget
 ) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]], float]:
-    """The linear relaxation, tightened by rounds of connectivity cuts: its bound (the least
-    of every round's value, each a bound; None if it did not solve), the cuts and its time, s."""
+    """The linear relaxation, tightened by rounds of connectivity cuts (each walk's, over its
+    graph): its bound (the least of every round's value, each a bound; None if it did not
+    solve), the cuts and its time, s."""
     import highspy
 
-    cols = program.blocks
     lp_started = time.perf_counter()
     h = _highs(program, budget, relax=True, time_limit_s=budget.time_limit_s)
     cuts: list[tuple[np.ndarray, np.ndarray]] = []
     lp_bound = None
+    most = budget.cut_rounds * sum(len(graph.vertices) for graph in graphs)
     for _ in range(budget.cut_rounds + 1):
         h.run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
@@ -743,8 +884,11 @@ def _relaxation_bound(
         value = float(h.getInfo().objective_function_value)
         lp_bound = value if lp_bound is None else min(lp_bound, value)  # each round's is a bound
         values = np.asarray(h.getSolution().col_value)
-        found = _separate(graph, values[cols["x"]], values[cols["z"]], cols)
-        if not found or len(cuts) >= budget.cut_rounds * len(graph.vertices):
+        found = [
+            cut for graph, walk in zip(graphs, program.walks)
+            for cut in _separate(graph, values[walk.blocks["x"]], values[walk.blocks["z"]], walk.blocks)
+        ]
+        if not found or len(cuts) >= most:
             break
         _add_cuts(h, found)
         cuts.extend(found)
@@ -830,8 +974,8 @@ def _add_cuts(h: Any, cuts: list[tuple[np.ndarray, np.ndarray]]) -> None:
     )
 
 
-def _dual_bound(info: Any, lp_bound: float | None) -> float | None:
-    bound = float(info.mip_dual_bound)
+def _dual_bound(bound: float, lp_bound: float | None) -> float | None:
+    """HiGHS's dual bound, or ``lp_bound`` when it gave none."""
     if not math.isfinite(bound):
         return lp_bound
     return bound
@@ -888,12 +1032,76 @@ def _warm_start(model: StepModel, graph: _ReducedGraph, program: _Program, actio
     extra steps of longer stretches and the tail after the last vertex become hovers at the
     vertex before them: a walk of the model earning at least as much.
     """
+    return _warm_point(program, [(model, graph, actions)])
+
+
+def _warm_point(program: _Program, walks: list[tuple[StepModel, _ReducedGraph, list[int]]]) -> np.ndarray | None:
+    """A feasible point of a program of one or more walks from one walk of the grid per
+    walk of the program, each ``(model, graph, actions)`` with ``model.start_cell`` the
+    graph's start (None if some walk has none): each walk's columns as :func:`_warm_start`
+    describes, and the service that all of them deliver together."""
+    values = np.zeros(len(program.cost))
+    for columns, (model, graph, actions) in zip(program.walks, walks):
+        if not _warm_walk(model, graph, columns, actions, values):
+            return None
+    N = len(program.nodes)
     cols = program.blocks
+    data, energy = np.zeros(N), np.zeros(N)
+    for walk in program.walks:
+        data += np.bincount(walk.pair_node, weights=values[walk.blocks["fd"]], minlength=N)
+        energy += np.bincount(walk.pair_node, weights=values[walk.blocks["fe"]], minlength=N)
+    values[cols["u"]] = np.minimum(data, 1.0)
+    values[cols["w"]] = np.minimum(energy, program.upper[cols["w"]])
+    return values
+
+
+def _warm_walk(
+    model: StepModel, graph: _ReducedGraph, walk: _WalkColumns, actions: list[int], values: np.ndarray
+) -> bool:
+    """Write one walk's columns of the point made from ``actions`` into ``values`` (all but
+    the shared service); False if the walk has no such point."""
+    counts = _walk_counts(model, graph, actions)
+    if counts is None:
+        return False
+    x, hov, here, entry = counts
+    cols = walk.blocks
+    V = len(graph.vertices)
+    values[cols["x"]] = x
+    values[cols["h"]] = hov
+    values[cols["y"].start + here] = 1.0
+    visited = np.zeros(V, dtype=bool)
+    visited[0] = True
+    visited[list(entry)] = True
+    values[cols["z"]] = visited
+    # commodity: down the tree of first entries, one unit per visited vertex below
+    below = visited.astype(float)
+    below[0] = 0.0
+    order = sorted(entry, key=lambda v: -_depth(graph, entry, v))
+    g = np.zeros(graph.n_arcs)
+    for v in order:
+        arc = entry[v]
+        g[arc] = below[v]
+        below[graph.tail[arc]] += below[v]
+    values[cols["g"]] = g
+    n = np.zeros(V)
+    np.add.at(n, graph.head, x)
+    n += hov
+    values[cols["fd"]] = np.minimum(walk.pair_data * n[walk.pair_vertex], visited[walk.pair_vertex])
+    values[cols["fe"]] = np.minimum(walk.pair_energy * n[walk.pair_vertex], visited[walk.pair_vertex])
+    slack = model.steps - float(graph.moves @ x + hov.sum())
+    values[cols["slack"]] = slack
+    return not (slack < 0 or (graph.exact and slack > 0))
+
+
+def _walk_counts(
+    model: StepModel, graph: _ReducedGraph, actions: list[int]
+) -> tuple[np.ndarray, np.ndarray, int, dict[int, int]] | None:
+    """A walk of the grid as the model's arc and hover counts (:func:`_warm_start`), its end
+    vertex and the arc of each vertex's first entry (None if it maps to no walk)."""
     V = len(graph.vertices)
     index = {int(c): i for i, c in enumerate(graph.vertices)}
     x = np.zeros(graph.n_arcs)
     hov = np.zeros(V)
-    visits: list[int] = []
     entry: dict[int, int] = {}
     cell, here, since = model.start_cell, 0, 0
     steps = 0
@@ -916,43 +1124,11 @@ def _warm_start(model: StepModel, graph: _ReducedGraph, program: _Program, actio
                     entry.setdefault(int(graph.head[arc]), arc)
             hov[here] += since - sum(graph.moves[arc] for arc in path)
         here, since = v, 0
-        visits.append(v)
     if graph.exact:
         hov[here] += model.steps - (steps - since)  # fill the episode
     if np.any(hov < 0):
         return None
-    values = np.zeros(len(program.cost))
-    values[cols["x"]] = x
-    values[cols["h"]] = hov
-    values[cols["y"].start + here] = 1.0
-    visited = np.zeros(V, dtype=bool)
-    visited[0] = True
-    visited[list(entry)] = True
-    values[cols["z"]] = visited
-    # commodity: down the tree of first entries, one unit per visited vertex below
-    below = visited.astype(float)
-    below[0] = 0.0
-    order = sorted(entry, key=lambda v: -_depth(graph, entry, v))
-    g = np.zeros(graph.n_arcs)
-    for v in order:
-        arc = entry[v]
-        g[arc] = below[v]
-        below[graph.tail[arc]] += below[v]
-    values[cols["g"]] = g
-    n = np.zeros(V)
-    np.add.at(n, graph.head, x)
-    n += hov
-    fd = np.minimum(program.pair_data * n[program.pair_vertex], visited[program.pair_vertex])
-    fe = np.minimum(program.pair_energy * n[program.pair_vertex], visited[program.pair_vertex])
-    values[cols["fd"]] = fd
-    values[cols["fe"]] = fe
-    N = len(program.nodes)
-    values[cols["u"]] = np.minimum(np.bincount(program.pair_node, weights=fd, minlength=N), 1.0)
-    values[cols["w"]] = np.minimum(np.bincount(program.pair_node, weights=fe, minlength=N), program.upper[cols["w"]])
-    values[cols["slack"]] = model.steps - float(graph.moves @ x + hov.sum())
-    if values[cols["slack"]][0] < 0 or (graph.exact and values[cols["slack"]][0] > 0):
-        return None
-    return values
+    return x, hov, here, entry
 
 
 def _depth(graph: _ReducedGraph, entry: dict[int, int], v: int) -> int:

@@ -225,14 +225,20 @@ def _planner(cls_name: str, *, seeded: bool = False,
 
 
 def _milp(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-    """The MILP's plan as a policy: the named budget, with the overrides that are set. The
-    task's seed is not used: the solve is the same for every seed."""
+    """The MILP's plan as a policy (a fleet's, :class:`planners.fleet_optimal.FleetMilpPlanner`,
+    in a fleet env): the named budget, with the overrides that are set. The task's seed is
+    not used: the solve is the same for every seed."""
     import dataclasses
 
     from planners.optimal import MilpPlanner
 
     overrides = {key: settings[key] for key in ("max_nodes", "time_limit_s") if settings[key] is not None}
-    return MilpPlanner(budget=dataclasses.replace(BUDGETS[settings["budget"]], **overrides))
+    budget = dataclasses.replace(BUDGETS[settings["budget"]], **overrides)
+    if hasattr(env, "fleet"):
+        from planners.fleet_optimal import FleetMilpPlanner
+
+        return FleetMilpPlanner(budget=budget)
+    return MilpPlanner(budget=budget)
 
 
 #: The MILP's dual bound as the tables name it (``bound_label``): with a deterministic
@@ -256,9 +262,10 @@ def _milp_record(policy: Any, env: Any) -> dict[str, Any]:
     result = getattr(policy, "result_", None)
     if result is None:
         return {}
+    bounds = policy.policy_bounds() if callable(getattr(policy, "policy_bounds", None)) else policy_bounds(result)
     out = {
         "policy_class": OPEN_LOOP,
-        "policy_bounds": [{"value": b.value, "name": b.name, "holds_for": b.holds_for} for b in policy_bounds(result)],
+        "policy_bounds": [{"value": b.value, "name": b.name, "holds_for": b.holds_for} for b in bounds],
         "solver_status": result.status,
         "solver_message": result.message,
         "best_return": result.objective,
@@ -270,7 +277,8 @@ def _milp_record(policy: Any, env: Any) -> dict[str, Any]:
         "solver_time_limit_hit": result.time_limit_hit,
     }
     if result.bound is not None and math.isfinite(result.bound):
-        out["bound_label"] = MILP_BOUND if step_model(env.tables).exact else MILP_EXPECTED_BOUND
+        tables = env.fleet.tables if hasattr(env, "fleet") else env.tables
+        out["bound_label"] = MILP_BOUND if step_model(tables).exact else MILP_EXPECTED_BOUND
     else:
         out["bound_return"] = None
     return out
@@ -628,6 +636,17 @@ _CONTINUOUS_QUICK = {"k": {"hi_of": _n_nodes, "hi_doc": "n_nodes"}, "k_max": {"q
 _OMPL_TOUR = declared(OmplTourPlanner, skip=("seed",), ompl_iterations={"quick": 50}, **_CONTINUOUS_QUICK)
 _STRAIGHT_LINE = declared(StraightLinePlanner, skip=("seed",), **_CONTINUOUS_QUICK)
 
+#: The MILP's settings, the single AUV's and the fleet's.
+_MILP = {
+    "budget": Setting(default="default", kind="str", choices=tuple(BUDGETS), quick="quick",
+                      doc="named search budget of planners.optimal.BUDGETS (deterministic limits)"),
+    "max_nodes": Setting(default=None, kind="int", lo=1, hi=10**9, optional=True, quick=1,
+                         doc="branch-and-bound nodes (default: the budget's)"),
+    "time_limit_s": Setting(default=None, lo=0, lo_open=True, hi=7 * 86_400, optional=True, unit="s",
+                            doc="wall-clock safety net (default: the budget's); a task that hits it "
+                                "records so, as its result then depends on the machine's speed"),
+}
+
 # ------------------------------------------------------------------ fleets
 
 #: The fleet's tabular agents train in the Python loop (the fleet has no compiled trainer).
@@ -741,6 +760,7 @@ def _fleet_algorithms() -> tuple[Algorithm, ...]:
                   observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True),
         Algorithm("fleet_stop_ppo", "stop-choosing PPO (fleet)", "rl", _FLEET_STOP_PPO, _fleet_stop_ppo,
                   _shared_ppo_record, modules=(*_DEEP_MODULES, "sb3_contrib"), trains_model=True, fleet=True),
+        Algorithm("fleet_milp", "MILP (fleet)", "planner", _MILP, _milp, _milp_record, fleet=True),
         Algorithm("fleet_q_learning", "independent Q-learning", "rl", {**_FLEET_TRAINING, **_TABULAR},
                   _fleet_agents("q_learning"), observation="tabular", fleet=True),
         Algorithm("fleet_random", "random (each AUV)", "rl", {}, _fleet_agents("random"), observation="tabular",
@@ -790,22 +810,7 @@ ALGORITHMS: dict[str, Algorithm] = {
                   worlds=(CONTINUOUS,), uses_ompl=lambda settings: True),
         Algorithm("straight_line", "straight line", "planner", _STRAIGHT_LINE,
                   _planner("StraightLinePlanner", seeded=True, module="planners.continuous"), worlds=(CONTINUOUS,)),
-        Algorithm(
-            "milp",
-            "MILP",
-            "planner",
-            {
-                "budget": Setting(default="default", kind="str", choices=tuple(BUDGETS), quick="quick",
-                                  doc="named search budget of planners.optimal.BUDGETS (deterministic limits)"),
-                "max_nodes": Setting(default=None, kind="int", lo=1, hi=10**9, optional=True, quick=1,
-                                     doc="branch-and-bound nodes (default: the budget's)"),
-                "time_limit_s": Setting(default=None, lo=0, lo_open=True, hi=7 * 86_400, optional=True, unit="s",
-                                        doc="wall-clock safety net (default: the budget's); a task that hits it "
-                                            "records so, as its result then depends on the machine's speed"),
-            },
-            _milp,
-            _milp_record,
-        ),
+        Algorithm("milp", "MILP", "planner", _MILP, _milp, _milp_record),
         *_fleet_algorithms(),
     )
 }

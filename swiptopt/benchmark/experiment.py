@@ -912,6 +912,29 @@ def fleet_suite() -> Experiment:
     )
 
 
+#: The fleet's yardstick (docs/fleet.md): a deterministic field small enough for the fleet
+#: MILP (planners.fleet_optimal), whose bound then holds for every fleet policy.
+FLEET_OPTIMUM_SCENARIO = {"preset": "paper", **_DETERMINISTIC, "n_nodes": 10, "episode_steps": 40}
+
+
+def fleet_optimum() -> Experiment:
+    """The ``fleet-optimum`` experiment: every fleet algorithm beside the fleet MILP and its
+    bound, for fleets of 1 and 2 AUVs on a deterministic field of 10 nodes."""
+    return _builtin(
+        "fleet-optimum",
+        "every fleet algorithm's gap to the fleet MILP's bound (which holds for every fleet policy on a "
+        "deterministic channel): the paper preset without fading or link failures, 10 nodes, 40 steps, "
+        "fleets of 1 and 2 AUVs (docs/fleet.md)",
+        scenario=FLEET_OPTIMUM_SCENARIO,
+        sweep={"n_auvs": [1, 2]},
+        algorithms={"fleet_milp": {"budget": "compare"}, "fleet_routing": {}, "fleet_stop_ppo": {},
+                    "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 5_000}, "fleet_random": {}},
+        layouts=_FLEET_LAYOUTS,
+        episodes=10,
+        baseline="fleet_milp",
+    )
+
+
 def builtin_experiments() -> dict[str, Experiment]:
     """The named experiments: ``compare`` (the standard suite), ``harbour`` (the continuous
     world's suite), ``generalisation`` and one per figure of the paper."""
@@ -982,6 +1005,7 @@ def builtin_experiments() -> dict[str, Experiment]:
             ),
             technologies(),
             fleet_suite(),
+            fleet_optimum(),
             *learning_curves(),
             *paper_figures(),
         )

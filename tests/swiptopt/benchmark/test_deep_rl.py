@@ -174,8 +174,9 @@ def test_an_algorithm_on_the_wrong_observation_is_a_config_error(name, value, va
 
 
 def test_the_observation_of_each_algorithm():
-    assert {n for n, a in ALGORITHMS.items() if a.observation == "vector"} == {"ppo", "dqn", "sac"}
-    assert {n for n, a in ALGORITHMS.items() if a.observation == "tabular"} == {"q_learning", "sarsa", "random"}
+    assert {n for n, a in ALGORITHMS.items() if a.observation == "vector"} == {"ppo", "dqn", "sac", "shared_ppo"}
+    assert {n for n, a in ALGORITHMS.items() if a.observation == "tabular"} == {
+        "q_learning", "sarsa", "random", "fleet_q_learning", "fleet_random"}
     with pytest.raises(ConfigError, match="'tabular', 'vector'"):
         resolve_settings("greedy", {"observation": "pixels"})
 

@@ -49,11 +49,21 @@ def test_the_optimal_adaptive_value_lies_below_both_bounds(fading):
 def test_every_algorithm_earns_at_most_the_optimal_adaptive_value(fading, name):
     scenario, value = fading
     algorithm = ALGORITHMS[name]
-    env = make_env(GRID, scenario, observation=algorithm.observation or "tabular")
-    policy = build_policy(name, env, quick_settings(name, {}), seed=0)
-    summary = evaluate(policy, env, EPISODES, seed=123).summary["return"]
+    if algorithm.fleet:  # a fleet of one is the single AUV: the same optimum bounds it
+        pytest.importorskip("pettingzoo")
+        from swiptopt.benchmark.algorithms import BuildContext
+        from swiptopt.env_fleet import AuvFleetEnv
+        from swiptopt.evaluation import evaluate_fleet
+
+        env = AuvFleetEnv(scenario, observation=algorithm.observation or "vector")
+        policy = build_policy(name, env, quick_settings(name, {}), seed=0, context=BuildContext(scenario))
+        summary = evaluate_fleet(policy, env, EPISODES, seed=123).summary["return"]
+    else:
+        env = make_env(GRID, scenario, observation=algorithm.observation or "tabular")
+        policy = build_policy(name, env, quick_settings(name, {}), seed=0)
+        summary = evaluate(policy, env, EPISODES, seed=123).summary["return"]
     assert summary.mean - summary.ci95 <= value
-    expected = "open-loop" if name == "milp" else "adaptive"
+    expected = "open-loop" if name in ("milp", "fleet_milp") else "adaptive"
     assert task_extra(name, policy, env).get("policy_class", "adaptive") == expected
 
 
