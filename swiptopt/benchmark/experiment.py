@@ -727,10 +727,11 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
 #: shipped (swiptopt/benchmark/pretrained), so ``compare`` evaluates them instead of training
 #: them; ``--retrain`` trains them afresh (hours on two cores).
 #: The budgets across layouts: the per-layout curves' doubled on the grid (a model serves
-#: every layout), DQN's with one more doubling (its curve still rose at 2,097,152); in the harbour, PPO's doubled twice (its curve rises longest), SAC's as
-#: the per-layout curve's (a SAC step costs many PPO steps: a lineage to 1,048,576 steps
-#: would take hours on a core) and the stop-choosing agent's from half the per-layout
-#: curve's first budget to twice its last.
+#: every layout), DQN's with one more doubling (its curve still rose at 2,097,152); in the
+#: harbour, PPO's doubled twice (its curve rises longest), SAC's as the per-layout curve's
+#: (a SAC step costs many PPO steps: a lineage to 1,048,576 steps would take hours on a
+#: core) and the stop-choosing agent's from half the per-layout curve's first budget to
+#: twice its last.
 ACROSS_BUDGETS = {
     "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE) + [4 * _GRID_CURVE[-1]],
              "stop_ppo": _doubled(_STOP_CURVE)},
