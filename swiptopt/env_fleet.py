@@ -89,6 +89,7 @@ class AuvFleetEnv(Layouts, ParallelEnv):
             space = spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
             self._obs = np.zeros((n, size), dtype=np.float32)
             self._cells_norm = np.ascontiguousarray(scenario.cell_centers_m / scenario.extent_m)
+            self._nodes_norm = self._node_positions()
         self.observation_spaces = {a: space for a in self.possible_agents}
         self.action_spaces = {a: spaces.Discrete(K.N_ACTIONS) for a in self.possible_agents}
         n_uniforms, n_normals = F.buffer_sizes(self.fleet)
@@ -109,8 +110,14 @@ class AuvFleetEnv(Layouts, ParallelEnv):
     def _build_layout(self, scenario: Scenario) -> F.FleetTables:
         return F.fleet_tables(scenario, K.with_layout(self.fleet.tables, scenario))
 
+    def _node_positions(self) -> np.ndarray:
+        """The layout's node positions over the extent (what the vector observation reads)."""
+        return np.ascontiguousarray(self.scenario.layout.positions_m / self.scenario.extent_m)
+
     def _set_layout(self, fleet: F.FleetTables) -> None:
         self.fleet = fleet
+        if self.observation == "vector":
+            self._nodes_norm = self._node_positions()
         if self.fleet_state is not None:
             self._args = F.fleet_args(fleet, self.fleet_state)
 
@@ -189,10 +196,9 @@ class AuvFleetEnv(Layouts, ParallelEnv):
                 ))
                 for k, a in enumerate(self.possible_agents) if a in agents
             }
-        nodes_norm = np.ascontiguousarray(self.scenario.layout.positions_m / self.scenario.extent_m)
         self._observe(
             s.where[K.W_T], s.cells, s.active, t.cov_ptr, t.cov_node, s.data_left, s.energy, t.data0, t.capacity,
-            t.params, self._cells_norm, nodes_norm, self._obs,
+            t.params, self._cells_norm, self._nodes_norm, self._obs,
         )
         return {a: self._obs[k].copy() for k, a in enumerate(self.possible_agents) if a in agents}
 

@@ -205,3 +205,18 @@ def test_default_start_cells_spread_along_the_surface():
     assert s.fleet_start_cells == ((1, 5, 0), (3, 5, 0), (6, 5, 0), (8, 5, 0))
     assert Scenario.preset("paper").fleet_start_cells == (Scenario.preset("paper").resolved_start_cell,)
     assert F.fleet_tables(s).start_cells.tolist() == [s.cell_index(c) for c in s.fleet_start_cells]
+
+
+def test_a_layout_chosen_at_reset_is_the_fleet_of_that_layout():
+    many = AuvFleetEnv(n_auvs=2, layout_seeds=range(5), **NOISY)
+    rng = np.random.default_rng(2)
+    for layout in (3, 1, 3):
+        got, infos = many.reset(seed=layout, options={"layout_seed": layout})
+        alone = AuvFleetEnv(n_auvs=2, layout_seed=layout, **NOISY)
+        want, _ = alone.reset(seed=layout)
+        assert infos["auv_0"]["layout_seed"] == layout
+        assert all(np.array_equal(got[a], want[a]) for a in want)
+        actions = {a: int(rng.integers(7)) for a in want}
+        got, *_ = many.step(actions)
+        want, *_ = alone.step(actions)
+        assert all(np.array_equal(got[a], want[a]) for a in want)
