@@ -27,7 +27,11 @@ Everything a user needs is importable from here::
   per-step model both use, :func:`step_model`; the walk polish :func:`polish_walk`;
   :func:`policy_bounds` (which of its bounds holds for which class of policy),
   :func:`hindsight_bound` (perfect information) and :func:`adaptive_optimum` (the exact
-  optimal adaptive policy of a small instance): docs/optimum.md.
+  optimal adaptive policy of a small instance): docs/optimum.md;
+- fleets of AUVs (``swiptopt.env_fleet.AuvFleetEnv``, docs/fleet.md): :class:`FleetRoutingPlanner`
+  (k-means hover points shared out by OR-Tools vehicle routing), :func:`solve_fleet_optimum`
+  and :class:`FleetMilpPlanner` (the MILP with a walk per AUV), :class:`FleetStopChoiceEnv`
+  and :class:`FleetStopChoicePolicy` (the stop-choosing agent for a fleet).
 
 The solvers (ortools, ompl, cvxpy, highspy, scikit-learn, scipy) load inside the functions that use them,
 so ``import planners`` stays light; a test checks that it imports none of them.
@@ -37,6 +41,8 @@ from planners.adaptive import AdaptiveOptimum, AdaptivePolicy, adaptive_optimum
 from planners.bounds import ExactOptimum, PolicyBound, UpperBound, exact_optimum, exact_state_bound, upper_bound
 from planners.clustering import HoverPoints, kmeans_hover_points
 from planners.continuous import ContinuousPlan, OmplTourPlanner, StraightLinePlanner
+from planners.fleet import FleetRoutingPlanner
+from planners.fleet_optimal import FleetMilpPlanner, solve_fleet_optimum
 from planners.grid import bfs_distances, distance_matrix, path_actions
 from planners.hindsight import HindsightBudget, HindsightResult, hindsight_bound
 from planners.optimal import BUDGETS, MilpBudget, MilpPlanner, OptimumResult, policy_bounds, solve_optimum
@@ -54,6 +60,8 @@ from planners.service import StepModel, step_model
 from planners.stops import (
     STOP_ENV_IDS,
     ContinuousStopChoiceEnv,
+    FleetStopChoiceEnv,
+    FleetStopChoicePolicy,
     StopChoiceEnv,
     StopChoicePolicy,
     make_stop_env,
@@ -69,6 +77,10 @@ __all__ = [
     "ContinuousStopChoiceEnv",
     "DwellSplitProblem",
     "ExactOptimum",
+    "FleetMilpPlanner",
+    "FleetRoutingPlanner",
+    "FleetStopChoiceEnv",
+    "FleetStopChoicePolicy",
     "GreedyPlanner",
     "HindsightBudget",
     "HindsightResult",
@@ -112,6 +124,7 @@ __all__ = [
     "polish_walk",
     "rate_greedy_actions",
     "segments_free",
+    "solve_fleet_optimum",
     "solve_optimum",
     "solve_tsp",
     "step_model",
