@@ -61,7 +61,7 @@ from planners.policies import (
     route_plan,
 )
 from planners.tsp import ARGUMENTS as TSP_ARGUMENTS
-from planners.tsp import DEFAULT_SOLUTION_LIMIT, DEFAULT_TIME_LIMIT_S, GLS_LAMBDA
+from planners.tsp import DEFAULT_SOLUTION_LIMIT, DEFAULT_TIME_LIMIT_S, routing_search_parameters
 from swiptopt import kernel as K
 from swiptopt.acoustics import shannon_rate_bps
 from swiptopt.errors import ConfigError
@@ -190,17 +190,9 @@ def _search(model: _Model, solution_limit: int, time_limit_s: float,
     """Solve ``model`` (from the routes ``initial``, in node numbers, when given): PATH_CHEAPEST_ARC
     then guided local search, as :func:`planners.tsp.solve_tsp`'s routing; (solution or None,
     status)."""
-    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+    from ortools.constraint_solver import routing_enums_pb2
 
-    params = pywrapcp.DefaultRoutingSearchParameters()
-    params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
-    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
-    params.guided_local_search_lambda_coefficient = GLS_LAMBDA
-    params.use_multi_armed_bandit_concatenate_operators = True
-    params.solution_limit = solution_limit
-    milliseconds = max(1, round(time_limit_s * 1000))
-    params.time_limit.FromMilliseconds(milliseconds)
-    params.lns_time_limit.FromMilliseconds(milliseconds)
+    params = routing_search_parameters(solution_limit, time_limit_s)
     routing = model.routing
     if initial is None:
         solution = routing.SolveWithParameters(params)

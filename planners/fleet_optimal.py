@@ -94,6 +94,7 @@ import numpy as np
 from planners.bounds import PolicyBound
 from planners.optimal import (
     MilpBudget,
+    OptimumResult,
     _branch,
     _final_bound,
     _program,
@@ -119,42 +120,26 @@ from swiptopt.scenario import Scenario
 
 
 @dataclass(frozen=True, eq=False)
-class FleetOptimumResult:
+class FleetOptimumResult(OptimumResult):
     """The fleet program's best plan (a walk per AUV), its value, a proven bound and how the
-    search ended: :class:`~planners.optimal.OptimumResult`'s fields, with one action list
-    per AUV."""
+    search ended: :class:`~planners.optimal.OptimumResult`'s fields, read for the fleet:
 
-    status: str
-    """As :class:`~planners.optimal.OptimumResult`'s: ``optimal`` only when the model is exact
-    (deterministic channel, no current), the plan is played without a blocked move and the
-    gap is within the budget's ``rel_gap``."""
-    message: str
-    objective: float | None
-    """What the plan earns under the fleet's rules (module docstring), blocked moves included:
-    the simulator's return with a deterministic channel, else its value in the expected-rate
-    relaxation. ``details["milp_objective"]`` is the program's own value of its plan."""
-    bound: float | None
-    """Proven upper bound on the fleet's return (:func:`fleet_policy_bounds` says for which
-    policies)."""
-    lp_bound: float | None
-    lp_time_s: float | None
-    actions: list[list[int]] = field(default_factory=list)
-    """The plan: for each AUV, one action per step (empty when there is no plan)."""
-    exact: bool = False
-    """Whether the per-step amounts and move costs are the simulator's own (deterministic
-    channel, no current); ``details["relaxes_cell_sharing"]`` says whether the model also
-    lets AUVs share cells that the scenario keeps apart."""
-    nodes: int = 0
-    time_limit_hit: bool = False
-    wall_s: float = 0.0
-    details: dict[str, Any] = field(default_factory=dict)
+    - ``status``: ``optimal`` only when the model is exact (deterministic channel, no
+      current), the plan is played without a blocked move and the gap is within the
+      budget's ``rel_gap``;
+    - ``objective``: what the plan earns under the fleet's rules (module docstring), blocked
+      moves included: the simulator's return with a deterministic channel, else its value in
+      the expected-rate relaxation (``details["milp_objective"]`` is the program's own value
+      of its plan);
+    - ``bound``: a proven upper bound on the fleet's return (:func:`fleet_policy_bounds` says
+      for which policies);
+    - ``actions``: for each AUV, one action per step (empty when there is no plan);
+    - ``exact``: whether the per-step amounts and move costs are the simulator's own;
+      ``details["relaxes_cell_sharing"]`` says whether the model also lets AUVs share cells
+      that the scenario keeps apart.
+    """
 
-    @property
-    def gap(self) -> float | None:
-        """(bound - objective) / |bound|, the benchmark's gap convention."""
-        if self.objective is None or self.bound is None:
-            return None
-        return (self.bound - self.objective) / max(abs(self.bound), 1e-12)
+    actions: list[list[int]] = field(default_factory=list)  # type: ignore[assignment]
 
 
 def fleet_policy_bounds(result: FleetOptimumResult) -> list[PolicyBound]:

@@ -449,11 +449,31 @@ def _solve_exact(
     return order, ("optimal" if proven else "time_limit" if clock else "feasible"), proven
 
 
+def routing_search_parameters(solution_limit: int, time_limit_s: float) -> object:
+    """OR-Tools routing's search as this package runs it: PATH_CHEAPEST_ARC, then guided
+    local search stopped after ``solution_limit`` solutions. Guided local search never stops
+    by itself: the solution count is its deterministic exit, the clock (``time_limit_s``)
+    only a safety net. The large-neighbourhood operators have a clock of their own (100 ms
+    by default): they get the safety net too, so load cannot cut one short."""
+    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+
+    params = pywrapcp.DefaultRoutingSearchParameters()
+    params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
+    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+    params.guided_local_search_lambda_coefficient = GLS_LAMBDA
+    params.use_multi_armed_bandit_concatenate_operators = True
+    params.solution_limit = solution_limit
+    milliseconds = max(1, round(time_limit_s * 1000))
+    params.time_limit.FromMilliseconds(milliseconds)
+    params.lns_time_limit.FromMilliseconds(milliseconds)
+    return params
+
+
 def _solve_routing(
     costs: np.ndarray, start: int, closed: bool, solution_limit: int, time_limit_s: float
 ) -> tuple[list[int], str, bool]:
     """OR-Tools routing, PATH_CHEAPEST_ARC + guided local search; (order, status, False)."""
-    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+    from ortools.constraint_solver import pywrapcp
 
     n = costs.shape[0]
     if closed:
@@ -468,19 +488,7 @@ def _solve_routing(
     transit = routing.RegisterTransitMatrix(matrix.tolist())
     routing.SetArcCostEvaluatorOfAllVehicles(transit)
 
-    params = pywrapcp.DefaultRoutingSearchParameters()
-    params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
-    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
-    params.guided_local_search_lambda_coefficient = GLS_LAMBDA
-    params.use_multi_armed_bandit_concatenate_operators = True
-    # Guided local search never stops by itself: the solution count is its deterministic
-    # exit, the clock only a safety net. The large-neighbourhood operators have a clock of
-    # their own (100 ms by default): give them the safety net too, so load cannot cut one short.
-    params.solution_limit = solution_limit
-    milliseconds = max(1, round(time_limit_s * 1000))
-    params.time_limit.FromMilliseconds(milliseconds)
-    params.lns_time_limit.FromMilliseconds(milliseconds)
-    solution = routing.SolveWithParameters(params)
+    solution = routing.SolveWithParameters(routing_search_parameters(solution_limit, time_limit_s))
     solutions = routing.solver().Solutions()
     if solution is None:
         return [], "no_solution", False

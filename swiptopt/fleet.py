@@ -169,43 +169,22 @@ def needs_refill(fleet: FleetTables, state: FleetState, uniforms: np.ndarray, no
                                t.normal_rows))
 
 
-class FleetArrays(NamedTuple):
-    """What :func:`fleet_step` reads (the scenario's tables, each AUV's battery, whether
-    AUVs may share a cell) and writes (the state's arrays), as one typed argument."""
-
-    next_cell: np.ndarray
-    propulsion_j: np.ndarray
-    cov_ptr: np.ndarray
-    cov_node: np.ndarray
-    cov_snr: np.ndarray
-    cov_pav: np.ndarray
-    capacity: np.ndarray
-    fail_prob: np.ndarray
-    params: np.ndarray
-    batteries_j: np.ndarray
-    share_cells: bool
-    where: np.ndarray
-    cells: np.ndarray
-    active: np.ndarray
-    data_left: np.ndarray
-    energy: np.ndarray
-    delivered: np.ndarray
-    collected: np.ndarray
-    acc: np.ndarray
-    auv_acc: np.ndarray
-    parts: np.ndarray
-    auv_parts: np.ndarray
-    busy: np.ndarray
-    steps: np.ndarray
+#: What :func:`fleet_step` reads (the scenario's tables as the kernel's step takes them, each
+#: AUV's battery, whether AUVs may share a cell) and writes (the :class:`FleetState`'s
+#: arrays), as one typed argument: the kernel's table fields, then the fleet's own, then the
+#: state's.
+_TABLE_FIELDS = K.StepArrays._fields[: K.StepArrays._fields.index("where")]
+FleetArrays = NamedTuple(  # type: ignore[misc]
+    "FleetArrays",
+    [(name, np.ndarray) for name in _TABLE_FIELDS] + [("batteries_j", np.ndarray), ("share_cells", bool)]
+    + [(name, np.ndarray) for name in FleetState._fields],
+)
 
 
 def fleet_args(fleet: FleetTables, state: FleetState) -> FleetArrays:
     """The arrays :func:`fleet_step` takes after (actions, uniforms, normals)."""
     t = fleet.tables
-    return FleetArrays(
-        t.next_cell, t.propulsion_j, t.cov_ptr, t.cov_node, t.cov_snr, t.cov_pav, t.capacity, t.fail_prob, t.params,
-        fleet.batteries_j, fleet.share_cells, *state,
-    )
+    return FleetArrays(*(getattr(t, name) for name in _TABLE_FIELDS), fleet.batteries_j, fleet.share_cells, *state)
 
 
 #: The fleet's energy totals: each the sum of the AUVs'.
