@@ -286,32 +286,52 @@ def route_fleet(
 
 
 class _AuvState(NamedTuple):
-    """What :class:`~planners.policies.PlanExecutor` reads of a state, for one AUV."""
+    """What the single AUV's planners read of a kernel state, for one AUV of a fleet."""
 
-    cell: int
+    where: np.ndarray
+    """(4,) the fleet's ``where`` with this AUV's cell at ``K.W_CELL``."""
     data_left: np.ndarray
     energy: np.ndarray
 
+    @property
+    def t(self) -> int:
+        return int(self.where[K.W_T])
 
-class _AuvView:
-    """AUV ``k``'s view of a fleet env, as :class:`~planners.policies.PlanExecutor` reads an
-    env: the fleet's kernel tables, the scenario, and ``state`` (the AUV's cell and the
-    nodes' shared data and energy; None before the first reset)."""
+    @property
+    def cell(self) -> int:
+        return int(self.where[K.W_CELL])
+
+
+class AuvView:
+    """AUV ``k``'s view of a fleet env, read as the single AUV's kernel env is (by
+    :class:`~planners.policies.PlanExecutor` and the stop-choosing episodes): the fleet's
+    kernel tables and scenario (the current layout's), and ``state`` (this AUV's cell and
+    the step count, the nodes' shared data and energy; None before the first reset)."""
 
     def __init__(self, env: Any, k: int):
         self._env = env
-        self._k = k
-        self.tables = env.fleet.tables
-        self.scenario = env.scenario
+        self.k = k
+
+    @property
+    def tables(self) -> K.Tables:
+        return self._env.fleet.tables
+
+    @property
+    def scenario(self) -> Scenario:
+        return self._env.scenario
 
     @property
     def state(self) -> _AuvState | None:
         s = self._env.fleet_state
-        return None if s is None else _AuvState(int(s.cells[self._k]), s.data_left, s.energy)
+        if s is None:
+            return None
+        where = s.where.copy()
+        where[K.W_CELL] = s.cells[self.k]
+        return _AuvState(where, s.data_left, s.energy)
 
 
 class _RouteFollower(PlanExecutor):
-    """Follows one AUV's route: a plan executor whose env is that AUV's :class:`_AuvView`."""
+    """Follows one AUV's route: a plan executor whose env is that AUV's :class:`AuvView`."""
 
     def __init__(self, route: Plan, linger_steps: int):
         super().__init__(linger_steps=linger_steps)
@@ -349,7 +369,7 @@ class FleetRoutingPlanner(Parameterised):
         self._env: Any = None
         self._fleet: Any = None
         self._followers: list[_RouteFollower] = []
-        self._views: list[_AuvView] = []
+        self._views: list[AuvView] = []
 
     def begin_episode(self, env: Any, observations: Any = None, infos: Any = None) -> None:
         """Plan for ``env`` (an :class:`~swiptopt.env_fleet.AuvFleetEnv` after its reset) when
@@ -358,7 +378,7 @@ class FleetRoutingPlanner(Parameterised):
             self._env, self._fleet = env, env.fleet
             self.plan_ = self.make_plan(env)
             self._followers = [_RouteFollower(plan, self.linger_steps) for plan in self.plan_.plans]
-            self._views = [_AuvView(env, k) for k in range(len(self._followers))]
+            self._views = [AuvView(env, k) for k in range(len(self._followers))]
         for follower, view in zip(self._followers, self._views):
             follower.begin_episode(view)
 

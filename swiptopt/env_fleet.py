@@ -92,8 +92,7 @@ class AuvFleetEnv(Layouts, ParallelEnv):
             self._nodes_norm = self._node_positions()
         self.observation_spaces = {a: space for a in self.possible_agents}
         self.action_spaces = {a: spaces.Discrete(K.N_ACTIONS) for a in self.possible_agents}
-        n_uniforms, n_normals = F.buffer_sizes(self.fleet)
-        self._uniforms, self._normals = np.ones(n_uniforms), np.zeros(n_normals)
+        self._uniforms, self._normals = K.noise_buffers(self.fleet.tables, n)
         self._actions = np.full(n, K.HOVER, dtype=np.int64)
         self.np_random, _ = seeding.np_random()
         self.fleet_state: F.FleetState | None = None
@@ -163,18 +162,16 @@ class AuvFleetEnv(Layouts, ParallelEnv):
         state = self.fleet_state
         if self._refill:
             K.refill_noise(self.np_random, self.fleet.tables, self._uniforms, self._normals, state.where)
-        live = list(self.agents)
-        was_active = state.active.copy()
+        live = list(self.agents)  # the AUVs in the fleet before this step
         code = self._step(self._actions, self._uniforms, self._normals, self._args)
         self._refill = F.needs_refill(self.fleet, state, self._uniforms, self._normals)
-        for k in range(self.fleet.n_auvs):
-            if was_active[k]:
-                self.paths[k].append(int(state.cells[k]))
         observations = self._observations(live)
         rewards, terminations, truncations, infos = {}, {}, {}, {}
         metrics = self.episode_metrics() if code else None
-        for a in live:
-            k = self.possible_agents.index(a)
+        for k, a in enumerate(self.possible_agents):
+            if a not in observations:
+                continue
+            self.paths[k].append(int(state.cells[k]))
             throughput, harvest, movement = state.auv_parts[k].tolist()
             rewards[a] = throughput + harvest + movement
             terminations[a] = code == K.TERMINATED or not state.active[k]

@@ -43,12 +43,7 @@ from swiptopt.kernel import (
     A_PROJECTOR_STEPS,
     A_PROPULSION_J,
     A_RETURN,
-    P_DATA_REF,
-    P_ENERGY_REF,
-    P_GAMMA,
     P_HOTEL_J,
-    P_LAMBDA,
-    P_MOVE_REF,
     R_HARVEST,
     R_MOVEMENT,
     R_THROUGHPUT,
@@ -57,6 +52,7 @@ from swiptopt.kernel import (
     W_T,
     finish_step,
     observation_at,
+    reward_parts,
     serve_pairs,
 )
 from swiptopt.metrics import episode_metrics, jain_index
@@ -154,14 +150,6 @@ def reset_fleet(fleet: FleetTables, state: FleetState) -> None:
     state.steps[:] = 0
 
 
-def buffer_sizes(fleet: FleetTables) -> tuple[int, int]:
-    """Lengths of a fleet's draw buffers: the kernel's, with room for every AUV to cover
-    every node in one step (the kernel's own sizes for a fleet of one)."""
-    t = fleet.tables
-    n = max(1024, 8 * t.n_nodes * fleet.n_auvs)
-    return n, n * max(1, t.normal_rows)
-
-
 def needs_refill(fleet: FleetTables, state: FleetState, uniforms: np.ndarray, normals: np.ndarray) -> bool:
     """Whether fewer draws are left than the next step could use."""
     t = fleet.tables
@@ -208,7 +196,6 @@ def fleet_step(actions, uniforms, normals, a):  # type: ignore[no-untyped-def]
     the fleet), the step's draws, :class:`FleetArrays` ``a``; returns the kernel's RUNNING,
     TERMINATED or TRUNCATED (the module's docstring gives the rules)."""
     params = a.params
-    gamma = params[P_GAMMA]
     n = a.cells.shape[0]
     bits_total = 0.0
     joules_total = 0.0
@@ -230,12 +217,11 @@ def fleet_step(actions, uniforms, normals, a):  # type: ignore[no-untyped-def]
             row,
         )
         move = propulsion + params[P_HOTEL_J]
-        a.auv_parts[k, R_THROUGHPUT] = gamma * bits / params[P_DATA_REF]
-        a.auv_parts[k, R_HARVEST] = (1.0 - gamma) * joules / params[P_ENERGY_REF]
-        a.auv_parts[k, R_MOVEMENT] = -params[P_LAMBDA] * move / params[P_MOVE_REF]
+        own = a.auv_parts[k]
+        reward_parts(bits, joules, move, params, own)
         row[A_BITS] += bits
         row[A_JOULES] += joules
-        row[A_RETURN] += a.auv_parts[k, R_THROUGHPUT] + a.auv_parts[k, R_HARVEST] + a.auv_parts[k, R_MOVEMENT]
+        row[A_RETURN] += own[R_THROUGHPUT] + own[R_HARVEST] + own[R_MOVEMENT]
         if bits > 0.0 or joules > 0.0:
             a.busy[k] = a.where[W_T] + 1
         bits_total += bits
@@ -293,7 +279,7 @@ def compiled(name: str) -> Callable[..., Any]:
     """The numba-compiled :func:`fleet_step` or :func:`fleet_observations`, compiled against
     the kernel's compiled parts (the same source as the Python functions)."""
     if not _COMPILED:
-        kernel = {name: K.compiled(name) for name in ("serve_pairs", "finish_step", "observation_at")}
+        kernel = {name: K.compiled(name) for name in ("serve_pairs", "reward_parts", "finish_step", "observation_at")}
         _COMPILED.update(compile_family(
             {"move_auv": move_auv, "fleet_step": fleet_step, "fleet_observations": fleet_observations}, kernel,
         ))
@@ -309,14 +295,10 @@ def fleet_metrics(fleet: FleetTables, state: FleetState) -> dict[str, Any]:
     t = fleet.tables
     state_like = K.EpisodeState(state.where, state.data_left, state.energy, state.delivered, state.collected,
                                 state.acc, state.parts)
-    out = episode_metrics(t, state_like)
+    # the always-on reading counts every AUV's projector in each of its steps
+    out = episode_metrics(t, state_like, None if fleet.n_auvs == 1 else int(state.steps.sum()))
     acc = state.auv_acc
     energy_j = acc[:, A_PROPULSION_J] + acc[:, A_HOTEL_J] + acc[:, A_PROJECTOR_J]
-    if fleet.n_auvs > 1:
-        # every AUV's projector on in each of its steps (episode_metrics counts one AUV's)
-        motion_j = float(state.acc[A_PROPULSION_J] + state.acc[A_HOTEL_J])
-        always_on_j = motion_j + t.named.projector_j * float(state.steps.sum())
-        out["energy_efficiency_always_on_bit_per_j"] = out["data_bits"] / always_on_j if always_on_j > 0 else 0.0
     out.update({
         "n_auvs": fleet.n_auvs,
         "makespan_s": float(state.busy.max(initial=0)) * t.named.dt_s,

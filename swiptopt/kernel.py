@@ -398,15 +398,17 @@ def reset_state(start_cell, data0, energy0, params, where, data_left, energy, de
     acc[A_STEPS_ENERGY_TARGET] = 0.0 if params[P_ENERGY_TARGET] <= 0 else -1.0
 
 
-def buffer_sizes(tables: Tables) -> tuple[int, int]:
-    """Lengths of the uniform and the normal draw buffers of a scenario."""
-    n = max(1024, 8 * tables.n_nodes)
+def buffer_sizes(tables: Tables, n_auvs: int = 1) -> tuple[int, int]:
+    """Lengths of the uniform and the normal draw buffers of a scenario, with room for
+    ``n_auvs`` AUVs (a fleet, :mod:`swiptopt.fleet`) to cover every node in one step."""
+    n = max(1024, 8 * tables.n_nodes * n_auvs)
     return n, n * max(1, tables.normal_rows)
 
 
-def noise_buffers(tables: Tables) -> tuple[np.ndarray, np.ndarray]:
-    """Empty draw buffers (uniforms, normals); :func:`new_state` marks them as used up."""
-    n_u, n_z = buffer_sizes(tables)
+def noise_buffers(tables: Tables, n_auvs: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Empty draw buffers (uniforms, normals) for ``n_auvs`` AUVs; :func:`new_state` marks
+    them as used up."""
+    n_u, n_z = buffer_sizes(tables, n_auvs)
     return np.ones(n_u), np.zeros(n_z)
 
 
@@ -703,6 +705,16 @@ def serve_pairs(  # type: ignore[no-untyped-def]  # noqa: C901
     return bits_total, joules_total
 
 
+def reward_parts(bits, joules, move_j, params, parts):  # type: ignore[no-untyped-def]
+    """Write the reward's three weighted parts (paper eq. 23, normalised) of ``bits``
+    collected, ``joules`` delivered and ``move_j`` of propulsion and hotel energy into
+    ``parts`` (throughput, harvest, movement)."""
+    gamma = params[P_GAMMA]
+    parts[R_THROUGHPUT] = gamma * bits / params[P_DATA_REF]
+    parts[R_HARVEST] = (1.0 - gamma) * joules / params[P_ENERGY_REF]
+    parts[R_MOVEMENT] = -params[P_LAMBDA] * move_j / params[P_MOVE_REF]
+
+
 def finish_step(  # type: ignore[no-untyped-def]
     bits_total, joules_total, move_j, exhausted, params, where, data_left, energy, capacity, acc, parts
 ):
@@ -716,9 +728,7 @@ def finish_step(  # type: ignore[no-untyped-def]
         for i in range(energy.shape[0]):
             energy[i] = max(0.0, energy[i] - params[P_DRAIN_J])
 
-    parts[R_THROUGHPUT] = gamma * bits_total / params[P_DATA_REF]
-    parts[R_HARVEST] = (1.0 - gamma) * joules_total / params[P_ENERGY_REF]
-    parts[R_MOVEMENT] = -params[P_LAMBDA] * move_j / params[P_MOVE_REF]
+    reward_parts(bits_total, joules_total, move_j, params, parts)
     acc[A_BITS] += bits_total
     acc[A_JOULES] += joules_total
     acc[A_RETURN] += parts[R_THROUGHPUT] + parts[R_HARVEST] + parts[R_MOVEMENT]
@@ -780,6 +790,7 @@ _KERNEL_FUNCTIONS = (
     "needs_refill",
     "reset_state",
     "serve_pairs",
+    "reward_parts",
     "finish_step",
     "serve",
     "step",

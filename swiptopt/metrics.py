@@ -47,8 +47,9 @@ def jain_index(x: np.ndarray) -> float:
     return float(np.sum(x) ** 2 / (x.size * squares))
 
 
-def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
-    """The metrics of an episode from its final state.
+def episode_metrics(tables: K.Tables, state: K.EpisodeState, projector_steps: int | None = None) -> dict[str, Any]:
+    """The metrics of an episode from its final state (``projector_steps``: the steps the
+    always-on reading counts a projector in; by default the episode's, one AUV's).
 
     Energy efficiency, bits per joule of AUV energy, under each reading of the paper's
     "EE = T / P_tau ... P_tau is the sum of the transmission power from the AUV to node and
@@ -77,7 +78,7 @@ def episode_metrics(tables: K.Tables, state: K.EpisodeState) -> dict[str, Any]:
     gamma = params.reward_weight
     motion_j = float(acc[K.A_PROPULSION_J] + acc[K.A_HOTEL_J])
     auv_j = motion_j + float(acc[K.A_PROJECTOR_J])
-    always_on_j = motion_j + params.projector_j * state.t
+    always_on_j = motion_j + params.projector_j * (state.t if projector_steps is None else projector_steps)
     per_node_j = motion_j + params.projector_j * float(acc[K.A_COVERED_NODE_STEPS])
     bits = float(acc[K.A_BITS])
     served = int(np.count_nonzero(K.served_mask(state.data_left, state.energy, tables.capacity, gamma)))

@@ -3,7 +3,7 @@ decision at a time, on :class:`swiptopt.env_fleet.AuvFleetEnv` (the grid world).
 
 Each AUV runs the single AUV's decision process (:class:`~planners.stops.base.StopEpisode` over
 the fleet's candidate stops, :class:`~planners.stops.grid.GridStops`) on its own view of the
-fleet env (:class:`AuvView`: its cell, the shared nodes). :class:`FleetStopEpisode` interleaves
+fleet env (:class:`planners.fleet.AuvView`: its cell, the shared nodes). :class:`FleetStopEpisode` interleaves
 them: it asks the AUVs whose assignment is done for a decision, in AUV order, and otherwise hands
 out every AUV's next kernel action. :class:`FleetStopChoiceEnv` (Gymnasium) and
 :class:`FleetStopChoicePolicy` (a trained model as a fleet policy) both drive one, so the model
@@ -17,11 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
+from planners.fleet import AuvView
 from planners.stops.base import CANDIDATE_FEATURES, DWELLS, Dwell, StopEnvBase, StopEpisode, cached_layout
 from planners.stops.grid import GridMove, GridStops, GridStopSettings, build_grid_stops
 from swiptopt import kernel as K
@@ -52,48 +53,6 @@ class FleetStopSettings(GridStopSettings):
 
 
 # ----------------------------------------------------------------------------- one AUV
-
-
-class _AuvState(NamedTuple):
-    """What the single AUV's stop code reads of a kernel state, for one AUV of a fleet."""
-
-    where: np.ndarray
-    """(4,) the fleet's ``where`` with this AUV's cell at ``K.W_CELL``."""
-    data_left: np.ndarray
-    energy: np.ndarray
-
-    @property
-    def t(self) -> int:
-        return int(self.where[K.W_T])
-
-    @property
-    def cell(self) -> int:
-        return int(self.where[K.W_CELL])
-
-
-class AuvView:
-    """AUV ``k``'s view of a fleet env, read as the single AUV's kernel env is: the fleet's
-    kernel tables and scenario (the current layout's), and ``state`` (this AUV's cell and the
-    step count, the nodes' shared data and energy)."""
-
-    def __init__(self, env: Any, k: int):
-        self._env = env
-        self.k = k
-
-    @property
-    def tables(self) -> K.Tables:
-        return self._env.fleet.tables
-
-    @property
-    def scenario(self) -> Scenario:
-        return self._env.scenario
-
-    @property
-    def state(self) -> _AuvState:
-        s = self._env.fleet_state
-        where = s.where.copy()
-        where[K.W_CELL] = s.cells[self.k]
-        return _AuvState(where, s.data_left, s.energy)
 
 
 class AuvStopEpisode(StopEpisode):

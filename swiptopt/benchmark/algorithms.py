@@ -693,9 +693,7 @@ def _shared_ppo(env: Any, settings: dict[str, Any], seed: int, context: BuildCon
     from rl.fleet import SharedPolicy, make_shared_vec_env
 
     venv = make_shared_vec_env(settings["n_envs"], context.scenario)
-    hyperparams = {_SB3_NAMES.get(k, k): v for k, v in settings.items()
-                   if k not in ("timesteps", "n_envs", "net_arch") and v is not None}
-    result = train_deep("ppo", venv, settings["timesteps"], seed, hyperparams=hyperparams,
+    result = train_deep("ppo", venv, settings["timesteps"], seed, hyperparams=deep_hyperparams(settings),
                         policy_kwargs={"net_arch": list(settings["net_arch"])})
     policy = SharedPolicy(result.model)
     policy.train_seconds = result.train_seconds
@@ -730,9 +728,7 @@ def _fleet_stop_ppo(env: Any, settings: dict[str, Any], seed: int, context: Buil
         return FleetStopChoiceEnv(context.scenario, candidates=settings["candidates"])
 
     venv = DummyVecEnv([make for _ in range(settings["n_envs"])])
-    hyperparams = {_SB3_NAMES.get(k, k): v for k, v in settings.items()
-                   if k not in ("timesteps", "n_envs", "net_arch", "candidates") and v is not None}
-    result = train_deep("maskable_ppo", venv, settings["timesteps"], seed, hyperparams=hyperparams,
+    result = train_deep("maskable_ppo", venv, settings["timesteps"], seed, hyperparams=deep_hyperparams(settings),
                         policy_kwargs={"net_arch": list(settings["net_arch"])})
     policy = FleetStopChoicePolicy.from_env(result.model, venv.envs[0])
     policy.train_seconds = result.train_seconds

@@ -1,13 +1,12 @@
 """k-means + vehicle routing for a fleet (planners/fleet.py)."""
 
-import time
 
 import numpy as np
 import pytest
 
 pytest.importorskip("pettingzoo")
 
-from planners.fleet import FAILURES_PER_SOLUTION, FleetRoutingPlanner, route_fleet
+from planners.fleet import FleetRoutingPlanner, route_fleet
 from planners.grid import bfs_distances
 from planners.policies import KMeansTspPlanner, reachable, route_plan
 from swiptopt import Box, ConfigError, Scenario
@@ -149,11 +148,9 @@ def test_it_replans_only_for_a_new_layout():
 def test_routing_stops_on_its_budgets_when_nothing_else_fits():
     # one vehicle, one stop: no other solution exists, and guided local search would wait for
     # the clock; the failure budget stops it and the result is reported as reproducible
-    began = time.perf_counter()
+    # (status "feasible", not "time_limit": the deterministic budget, not the clock, ended it)
     found = route_fleet(np.array([[0.0, 3.0], [3.0, 0.0]]), np.array([2]), 10, time_limit_s=60.0)
-    assert time.perf_counter() - began < 30.0
     assert (found.routes, found.times, found.moves, found.status) == ([[0]], [4], [3], "feasible")
-    assert FAILURES_PER_SOLUTION >= 1
     # a stop that fits in no route is dropped; one only vehicle 1 can reach goes to vehicle 1
     travel = np.array([[0, np.inf, 8, np.inf], [np.inf, 0, 9, 2], [8, 9, 0, np.inf], [np.inf, 2, np.inf, 0]])
     found = route_fleet(travel, np.array([4, 1]), 10)

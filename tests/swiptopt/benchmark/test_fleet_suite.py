@@ -17,7 +17,7 @@ from swiptopt.benchmark.store import ResultStore  # noqa: E402
 SMALL = {"preset": "paper", "n_nodes": 8, "episode_steps": 30}
 
 
-def _task(algorithm: str, scenario: dict, settings: dict | None = None, seed: int = 3) -> dict:
+def _task(algorithm: str, scenario: dict, settings: dict | None = None) -> dict:
     exp = Experiment(name="t", scenario=scenario, algorithms={algorithm: settings or {}}, layouts=1, episodes=3)
     (task,) = exp.tasks()
     return run_task(task.to_dict())
