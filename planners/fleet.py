@@ -31,6 +31,12 @@ starts from the distance routes and minimises the longest route's steps first (t
 dimension's global span, with a coefficient larger than any total of moves), the total
 moves second. Because that search starts from the distance routes and keeps the best it
 finds, its longest route is never longer than theirs unless it serves more stops.
+``balance="return"`` collects prizes instead: a stop's disjunction costs its estimated
+value (what its service steps earn in the planners' per-step model,
+:class:`planners.service.StepModel`: the reward of the data and energy they deliver), an
+arc its moves' movement penalty beyond hovering's, so the routes maximise the estimated
+return, value served less propulsion, and leave out a stop that is not worth its detour
+(also from the distance routes; its estimate is never below theirs).
 
 Reproducibility follows :mod:`planners.tsp`: a fixed first-solution strategy
 (PATH_CHEAPEST_ARC), guided local search stopped by deterministic budgets (``solution_limit``
@@ -68,9 +74,13 @@ from swiptopt.errors import ConfigError
 from swiptopt.scenario import Scenario
 from swiptopt.validation import Param, Parameterised, Spec, check_value
 
-BALANCES = ("makespan", "distance")
-"""What the routes minimise: the longest route's steps, then the total moves; or the total
-moves alone."""
+BALANCES = ("makespan", "distance", "return")
+"""What the routes optimise: the longest route's steps, then the total moves; the total
+moves alone; or the estimated return (stops' values served less their moves' penalty)."""
+
+RETURN_SCALE = 1_000_000
+"""``balance="return"``: the routing's integer costs are the return in units of the most
+valuable stop's value over this."""
 
 #: The fleet routing planner's settings (:class:`FleetRoutingPlanner`); ``k``, ``seed`` and
 #: ``linger_steps`` are k-means + TSP's own declarations.
@@ -78,7 +88,8 @@ FLEET_ROUTING_PARAMETERS = {
     "k": KMEANS_TSP_PARAMETERS["k"],
     "seed": KMEANS_TSP_PARAMETERS["seed"],
     "balance": Param(default="makespan", kind="str", choices=BALANCES,
-                     doc="what the routes minimise: the longest route's steps, or the total moves"),
+                     doc="what the routes optimise: the longest route's steps, the total moves, or the "
+                         "estimated return"),
     "solution_limit": Param(default=DEFAULT_SOLUTION_LIMIT, kind="int", lo=1, hi=10_000_000, strict=True,
                             doc="guided local search's solution budget, per search"),
     "time_limit_s": Param(default=DEFAULT_TIME_LIMIT_S, lo=0, lo_open=True, hi=3600, unit="s",
@@ -93,8 +104,9 @@ an episode so short that one order fits), it finds no new solution and would run
 clock; this count stops it as deterministically as the solutions do. Searches on the paper's
 scenarios fail a few neighbours per solution, so the solutions decide there."""
 
-#: What :func:`route_fleet`'s ``horizon`` may hold.
+#: What :func:`route_fleet`'s ``horizon`` and ``move_cost`` may hold.
 HORIZON = Spec(kind="int", lo=0, strict=True, unit="steps", doc="the steps a route may take")
+MOVE_COST = Spec(lo=0, doc="a move's penalty, in the units of the stops' values")
 
 ROUTING_STATUSES = ("feasible", "time_limit", "no_solution")
 """Values of :attr:`FleetRoutes.status`: routes found within the deterministic budgets (any
@@ -154,18 +166,27 @@ class _Model(NamedTuple):
 
 
 def _routing_model(travel: np.ndarray, service: np.ndarray, horizon: int, span_coefficient: int,
-                   failures: int) -> _Model:
+                   failures: int, prizes: tuple[np.ndarray, np.ndarray] | None = None) -> _Model:
     """The routing model (module docstring): nodes 0..V-1 the vehicles' starts, V..V+m-1 the
-    stops, V+m the dummy end; ``travel`` (V + m, V + m) int moves."""
+    stops, V+m the dummy end; ``travel`` (V + m, V + m) int moves. ``prizes``: (arc costs
+    (V + m, V + m), drop penalties (m,)), integers, for ``balance="return"``; else an arc
+    costs its moves and dropping a stop more than any routes could."""
     from ortools.constraint_solver import pywrapcp
 
     m = len(service)
     v = travel.shape[0] - m
     n = v + m + 1
-    cost = np.zeros((n, n), dtype=np.int64)
-    cost[: v + m, v : v + m] = travel[:, v:]  # into a stop: its moves; into a start or the end: 0
-    time = cost.copy()
+    moves = np.zeros((n, n), dtype=np.int64)
+    moves[: v + m, v : v + m] = travel[:, v:]  # into a stop: its moves; into a start or the end: 0
+    time = moves.copy()
     time[:, v : v + m] += np.asarray(service, dtype=np.int64) - 1
+    cost = moves
+    # more than anything serving a stop could cost: moves <= horizon per route, span <= horizon
+    penalties = np.full(m, (int(span_coefficient) + v) * (int(horizon) + 1), dtype=np.int64)
+    if prizes is not None:
+        cost = np.zeros_like(moves)
+        cost[: v + m, v : v + m] = prizes[0][:, v:]
+        penalties = prizes[1]
     manager = pywrapcp.RoutingIndexManager(n, v, list(range(v)), [n - 1] * v)
     routing = pywrapcp.RoutingModel(manager)
     routing.SetArcCostEvaluatorOfAllVehicles(routing.RegisterTransitMatrix(cost.tolist()))
@@ -173,11 +194,9 @@ def _routing_model(travel: np.ndarray, service: np.ndarray, horizon: int, span_c
     dimension = routing.GetDimensionOrDie("time")
     if span_coefficient:
         dimension.SetGlobalSpanCostCoefficient(int(span_coefficient))
-    # more than anything serving it could cost: moves <= horizon per route, span <= horizon
-    penalty = (int(span_coefficient) + v) * (int(horizon) + 1)
     for s in range(m):
         index = manager.NodeToIndex(v + s)
-        routing.AddDisjunction([index], penalty)
+        routing.AddDisjunction([index], int(penalties[s]))
         barred = [k for k in range(v) if travel[k, v + s] > horizon]  # vehicles that cannot reach the stop
         if barred:
             routing.VehicleVar(index).RemoveValues(barred)
@@ -229,6 +248,8 @@ def route_fleet(
     horizon: int,
     *,
     balance: str = "makespan",
+    values: np.ndarray | None = None,
+    move_cost: float = 0.0,
     solution_limit: int = DEFAULT_SOLUTION_LIMIT,
     time_limit_s: float = DEFAULT_TIME_LIMIT_S,
 ) -> FleetRoutes:
@@ -237,8 +258,9 @@ def route_fleet(
     ``travel``: (V + m, V + m) grid moves between the vehicles' start cells (first) and the
     stops' cells, ``inf`` (or above ``horizon``) where there is no path; ``service``: (m,)
     each stop's service steps, its arrival step included; ``horizon``: the steps a route
-    may take. ``balance``: one of :data:`BALANCES`. Raises ConfigError on arguments of the
-    wrong shape or range.
+    may take. ``balance``: one of :data:`BALANCES`; ``"return"`` needs ``values`` (m,), each
+    stop's estimated value, and ``move_cost``, a move's penalty in the same units (both
+    non-negative). Raises ConfigError on arguments of the wrong shape or range.
     """
     began = time.perf_counter()
     travel = np.asarray(travel, dtype=float)
@@ -254,6 +276,13 @@ def route_fleet(
     horizon = check_value("horizon", horizon, HORIZON)
     solution_limit = check_value("solution_limit", solution_limit, TSP_ARGUMENTS["solution_limit"])
     time_limit_s = check_value("time_limit_s", time_limit_s, TSP_ARGUMENTS["time_limit_s"])
+    if balance == "return":
+        if values is None:
+            raise ConfigError('balance="return" needs values: each stop\'s estimated value', "values")
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if values.shape != (m,) or not np.isfinite(values).all() or (values < 0).any():
+            raise ConfigError(f"values must be {m} finite non-negative numbers, one per stop", "values")
+        move_cost = check_value("move_cost", move_cost, MOVE_COST)
     if m == 0:
         return FleetRoutes([[] for _ in range(v)], [], [0] * v, [0] * v, "feasible")
     moves = np.where(np.isfinite(travel) & (travel <= horizon), travel, horizon + 1).astype(np.int64)
@@ -263,13 +292,17 @@ def route_fleet(
     if solution is None:
         return FleetRoutes([[] for _ in range(v)], list(range(m)), [0] * v, [0] * v, status)
     nodes, times = _routes_of(model, solution)
-    if balance == "makespan":
+    if balance != "distance":
         left_s = time_limit_s - (time.perf_counter() - began)
         if left_s <= 0:
             status = "time_limit"  # the distance search used up the safety net
         else:
-            # one step of the longest route outweighs every route's moves together
-            model = _routing_model(moves, service, horizon, v * horizon + 1, failures)
+            if balance == "makespan":
+                # one step of the longest route outweighs every route's moves together
+                model = _routing_model(moves, service, horizon, v * horizon + 1, failures)
+            else:
+                model = _routing_model(moves, service, horizon, 0, failures,
+                                       prizes=_prizes(moves, values, move_cost))
             solution, second = _search(model, solution_limit, left_s, initial=nodes)
             if solution is not None:
                 nodes, times = _routes_of(model, solution)
@@ -283,6 +316,33 @@ def route_fleet(
         moves=[int(sum(moves[a, b] for a, b in zip([k, *route], route))) for k, route in enumerate(nodes)],
         status=status,
     )
+
+
+def _prizes(moves: np.ndarray, values: np.ndarray, move_cost: float) -> tuple[np.ndarray, np.ndarray]:
+    """``balance="return"``'s integer arc costs and drop penalties: the return in units of
+    the largest of the values (and a route's moves' penalty) over :data:`RETURN_SCALE`, each
+    arc one unit more per move, so that of two equally valued plans the shorter wins."""
+    unit = max(float(values.max(initial=0.0)), move_cost * float(moves.max(initial=0)), 1e-300) / RETURN_SCALE
+    arcs = np.rint(moves * (move_cost / unit)).astype(np.int64) + moves
+    return arcs, np.rint(values / unit).astype(np.int64)
+
+
+def stop_values(scenario_tables: K.Tables, stops: list[int], service: np.ndarray) -> tuple[np.ndarray, float]:
+    """``balance="return"``'s estimates: (m,) what each stop's ``service`` steps earn on their
+    own in the planners' per-step model (:func:`planners.service.step_model`: the reward of
+    the data and energy delivered, each node capped), and a move's movement penalty beyond
+    hovering's (the median over the cells' moves), in reward units."""
+    from planners.service import step_model
+
+    model = step_model(scenario_tables)
+    values = np.zeros(len(stops))
+    for s, (cell, steps) in enumerate(zip(stops, service)):
+        counts = np.zeros(model.n_cells)
+        counts[cell] = steps
+        values[s] = model.service_value(counts)
+    moving = model.next_cell != np.arange(model.n_cells)[:, None]
+    extra = (model.step_cost - model.stay_cost[:, None])[moving]
+    return values, float(max(np.median(extra), 0.0)) if extra.size else 0.0
 
 
 class _AuvState(NamedTuple):
@@ -352,8 +412,9 @@ class FleetRoutingPlanner(Parameterised):
     :class:`FleetPlan`: ``plans`` (one :class:`~planners.policies.Plan` per AUV), ``status``
     and ``details`` (``hover_k``, ``hover_cells``, ``service_steps``, ``routes`` as cell
     lists, ``route_times``, ``route_moves``, ``dropped_stops``, ``routing_status``,
-    ``balance``; ``unreachable_nodes`` when some coverable nodes are out of every AUV's
-    reach).
+    ``balance``; with ``balance="return"`` also ``stop_values`` and ``move_cost``, the
+    routing's estimates (:func:`stop_values`); ``unreachable_nodes`` when some coverable
+    nodes are out of every AUV's reach).
     """
 
     parameters = FLEET_ROUTING_PARAMETERS
@@ -409,13 +470,18 @@ class FleetRoutingPlanner(Parameterised):
         hover = kmeans_hover_points(scenario, k, rng=self.seed, tables=tables)
         stops = [int(c) for c in hover.cells]
         service = service_steps(scenario, tables, hover)
+        values, move_cost = stop_values(tables, stops, service) if self.balance == "return" else (None, 0.0)
         found = route_fleet(distance_matrix(tables.next_cell, starts + stops), service, scenario.episode_steps,
-                            balance=self.balance, solution_limit=self.solution_limit, time_limit_s=self.time_limit_s)
+                            balance=self.balance, values=values, move_cost=move_cost,
+                            solution_limit=self.solution_limit, time_limit_s=self.time_limit_s)
         plans = []
         for start, route in zip(starts, found.routes):
             cells = [stops[s] for s in route]
             plans.append(route_plan(scenario, tables, start, cells) if cells else Plan([], status="no stops"))
-        return self._summary(plans, where, hover, service, found)
+        plan = self._summary(plans, where, hover, service, found)
+        if values is not None:
+            plan.details.update(stop_values=[float(x) for x in values], move_cost=move_cost)
+        return plan
 
     def _summary(self, plans: list[Plan], where: Reach, hover: HoverPoints, service: np.ndarray,
                  found: FleetRoutes) -> FleetPlan:

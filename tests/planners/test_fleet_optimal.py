@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from planners.bounds import ADAPTIVE, LP_EXPECTED_NAME, MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP, PolicyBound
-from planners.fleet import FleetRoutingPlanner
+from planners.fleet import BALANCES, FleetRoutingPlanner
 from planners.fleet_optimal import (
     FleetMilpPlanner,
     auv_models,
@@ -111,7 +111,7 @@ def test_bound_holds_for_every_fleet_algorithm(share_cells):
     result = solve_fleet_optimum(scenario, budget=QUICK)
     assert result.bound >= result.objective - 1e-9
     assert fleet_policy_bounds(result) == [PolicyBound(result.bound, MILP_NAME, ADAPTIVE)]
-    routing = [FleetRoutingPlanner(balance=balance, solution_limit=10) for balance in ("makespan", "distance")]
+    routing = [FleetRoutingPlanner(balance=balance, solution_limit=10) for balance in BALANCES]
     returns = [replay(policy, scenario) for policy in routing + [RandomFleet(seed) for seed in range(3)]]
     assert max(returns) <= result.bound + 1e-9
 

@@ -158,6 +158,46 @@ def test_routing_stops_on_its_budgets_when_nothing_else_fits():
     assert found.times == [0, 2] and found.status == "feasible"
 
 
+def test_the_return_balance_trades_a_stops_value_against_its_moves():
+    # one vehicle, horizon 10: stop 0 is 2 moves away, stop 1 8 moves, 9 between them, so
+    # only one fits; the makespan and distance objectives keep the near one
+    travel = np.array([[0, 2, 8], [2, 0, 9], [8, 9, 0]], dtype=float)
+    service = np.array([1, 1])
+    for balance in ("makespan", "distance"):
+        assert route_fleet(travel, service, 10, balance=balance).routes == [[0]]
+    kept = {cost: route_fleet(travel, service, 10, balance="return", values=[3.0, 5.0], move_cost=cost)
+            for cost in (0.0, 0.5, 2.0)}
+    assert kept[0.0].routes == [[1]] and kept[0.0].dropped == [0]  # 5 beats 3 when moves are free
+    assert kept[0.5].routes == [[0]]  # 3 - 2 x 0.5 = 2 beats 5 - 8 x 0.5 = 1
+    assert kept[2.0].routes == [[]] and kept[2.0].dropped == [0, 1]  # neither is worth its moves
+    with pytest.raises(ConfigError, match="values"):
+        route_fleet(travel, service, 10, balance="return")
+    with pytest.raises(ConfigError, match="values"):
+        route_fleet(travel, service, 10, balance="return", values=[3.0, -1.0])
+    with pytest.raises(ConfigError, match="move_cost"):
+        route_fleet(travel, service, 10, balance="return", values=[3.0, 5.0], move_cost=-1.0)
+
+
+def test_the_return_balance_estimates_no_less_than_the_distance_routes():
+    # one AUV, 40 steps: it must leave stops out; the return search starts from the distance
+    # routes and keeps its best, so by its own estimate it never does worse than they do
+    env = AuvFleetEnv(episode_steps=40)
+    by = {balance: planned(env, balance=balance).plan_.details for balance in ("distance", "return")}
+    mine = by["return"]
+    value = dict(zip(mine["hover_cells"], mine["stop_values"]))
+    assert mine["move_cost"] > 0 and min(value.values()) > 0
+    assert by["distance"]["dropped_stops"] and mine["routing_status"] == "feasible"
+
+    def estimate(details):
+        return sum(value[c] for route in details["routes"] for c in route) - mine["move_cost"] * sum(
+            details["route_moves"])
+
+    assert estimate(mine) >= estimate(by["distance"]) - 1e-3 * max(value.values())
+    # the planner plays it: the episode's return is the simulator's, not the estimate
+    record = evaluate_fleet(FleetRoutingPlanner(balance="return"), env, episodes=1, seed=0).records[0]
+    assert record["return"] > 0
+
+
 def test_settings_are_checked_and_act_needs_begin_episode():
     with pytest.raises(ConfigError, match="balance"):
         FleetRoutingPlanner(balance="fastest")
