@@ -35,7 +35,6 @@ def main() -> None:
     parser.add_argument("--layouts", type=int, default=4)
     parser.add_argument("--episodes", type=int, default=10)
     args = parser.parse_args()
-    fields = {k: v for k, v in FLEET_SCENARIO.items() if k != "preset"}
     print(f"mean return over layouts 0-{args.layouts - 1}, {args.episodes} episodes each; "
           "ratio to makespan's [lowest-highest layout]; stops left out")
     print(f"{'AUVs':>4}  " + "  ".join(f"{b:<30}" for b in BALANCES))
@@ -43,7 +42,7 @@ def main() -> None:
         returns = {b: [] for b in BALANCES}
         dropped = {b: 0 for b in BALANCES}
         for layout in range(args.layouts):
-            env = AuvFleetEnv(Scenario.preset(FLEET_SCENARIO["preset"], **fields, n_auvs=n, layout_seed=layout))
+            env = AuvFleetEnv(Scenario.from_dict({**FLEET_SCENARIO, "n_auvs": n, "layout_seed": layout}))
             for balance in BALANCES:
                 planner = FleetRoutingPlanner(balance=balance)
                 records = evaluate_fleet(planner, env, episodes=args.episodes, seed=0).records

@@ -327,14 +327,14 @@ def _prizes(moves: np.ndarray, values: np.ndarray, move_cost: float) -> tuple[np
     return arcs, np.rint(values / unit).astype(np.int64)
 
 
-def stop_values(scenario_tables: K.Tables, stops: list[int], service: np.ndarray) -> tuple[np.ndarray, float]:
+def stop_values(tables: K.Tables, stops: list[int], service: np.ndarray) -> tuple[np.ndarray, float]:
     """``balance="return"``'s estimates: (m,) what each stop's ``service`` steps earn on their
     own in the planners' per-step model (:func:`planners.service.step_model`: the reward of
     the data and energy delivered, each node capped), and a move's movement penalty beyond
     hovering's (the median over the cells' moves), in reward units."""
     from planners.service import step_model
 
-    model = step_model(scenario_tables)
+    model = step_model(tables)
     values = np.zeros(len(stops))
     for s, (cell, steps) in enumerate(zip(stops, service)):
         counts = np.zeros(model.n_cells)
