@@ -293,7 +293,9 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:
     a line with 95 % CI error bars per learning algorithm, each planner of the experiment as
-    a band (its mean ± 95 % CI over the same layouts). The data go beside it as CSV."""
+    a band (its mean ± 95 % CI over the same layouts). The data go beside it as CSV. Only
+    complete rows are drawn (every task of the budget, or of the planner, has a result): a
+    mean over some layouts is not a point of the curve; a panel with none says so."""
     import matplotlib
 
     from swiptopt.benchmark import tables
@@ -311,7 +313,9 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
         drawn = False
         for i, experiment in enumerate(curves):
             ax = fig.add_subplot(nrows, cols, i + 1)
-            rows, _ = tables.aggregate(experiment, store)
+            stored = tables.load_results(experiment, store)
+            rows, _ = tables.aggregate(experiment, stored)
+            rows = [r for r in rows if stored.complete((0, r.algorithm))]
             by_row = {r.algorithm: r for r in rows}
             lo = min(min(b) for b in experiment.budgets.values())
             hi = max(max(b) for b in experiment.budgets.values())
@@ -334,12 +338,15 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
                             capsize=2, lw=1, label=found[0][1].label.split(" @ ")[0])
                 data_rows += [[experiment.name, name, b, v.mean, v.ci95, v.n] for b, v in zip(x.astype(int), s)]
                 drawn = True
+            if not rows:
+                ax.text(0.5, 0.5, "not complete in this store", ha="center", va="center", transform=ax.transAxes)
             ax.set_xscale("log", base=2)
             ax.set_xlabel("training budget (steps; stop-choosing PPO: decisions)")
             ax.set_ylabel("return")
             ax.set_title(f"{experiment.name} ({experiment.world})")
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=5, ncol=2)
+            if rows:
+                ax.legend(fontsize=5, ncol=2)
         if not drawn:
             return FigureResult(stem, [], "the store holds none of the curves' results")
         paths = _save(fig, outdir, stem)

@@ -48,7 +48,7 @@ import csv
 import io
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -137,6 +137,12 @@ class Stored:
     """Tasks without a result."""
     failures: dict[str, str]
     """Task key -> reason, for the tasks whose last try failed."""
+    expected: dict[tuple[int, str], int] = field(default_factory=dict)
+    """The experiment's task count by (sweep point index, row)."""
+
+    def complete(self, key: tuple[int, str]) -> bool:
+        """Whether every task of the (sweep point index, row) has a result."""
+        return len(self.by_row.get(key, {})) == self.expected.get(key, 0)
 
     def get(self, key: tuple[int, str], default: Any = None) -> Any:
         return self.by_row.get(key, default)
@@ -152,10 +158,13 @@ def load_results(experiment: Experiment, store: ResultStore) -> Stored:
     results = store.get(keys)
     points = experiment.points()
     out: dict[tuple[int, str], dict[int, dict[str, Any]]] = {}
+    expected: dict[tuple[int, str], int] = {}
     for t in tasks:
+        where = (points.index(t.point), t.row)
+        expected[where] = expected.get(where, 0) + 1
         if t.key in results:
-            out.setdefault((points.index(t.point), t.row), {})[t.seed] = results[t.key]
-    return Stored(out, len(tasks) - sum(len(v) for v in out.values()), store.failures(keys))
+            out.setdefault(where, {})[t.seed] = results[t.key]
+    return Stored(out, len(tasks) - sum(len(v) for v in out.values()), store.failures(keys), expected)
 
 
 def _stored(experiment: Experiment, store: ResultStore | Stored) -> Stored:
@@ -595,22 +604,34 @@ def render(rows: list[Row], fmt: str) -> str:
 class CurveRow:
     """One algorithm's learning curve in one experiment (``budgets``): its mean return at
     each budget, whether the curve is flat at its end, and its last budget against the best
-    planner of the experiment on the same layouts."""
+    planner of the experiment on the same layouts. A budget some of whose tasks have no
+    result yet (a run still going, or stopped) is *incomplete*: its mean is shown with its
+    task count, and no verdict that needs it is drawn."""
 
     experiment: str
     algorithm: str
     label: str
     budgets: tuple[int, ...]
     returns: tuple[Summary, ...]
-    flat: bool
-    """The last two budgets' means lie within each other's 95 % CI."""
-    near_plateau: int
-    """The smallest budget whose mean return is within 10 % of the last budget's."""
+    flat: bool | None
+    """The last two budgets' means lie within each other's 95 % CI; None while either is
+    incomplete."""
+    near_plateau: int | None
+    """The smallest budget whose mean return is within 10 % of the last budget's; None while
+    any budget is incomplete."""
     reference: str
     """The best planner's label (the experiment's non-budgeted algorithm of highest mean return)."""
     reference_return: Summary | None
     ratio: Ratio | None
-    """The last budget's mean over the reference's, paired by layout (seeds averaged)."""
+    """The last budget's mean over the reference's, paired by layout (seeds averaged); None
+    while the last budget or the reference is incomplete."""
+    tasks: tuple[tuple[int, int], ...] = ()
+    """Per budget, (tasks with a result, tasks of the budget)."""
+
+    @property
+    def complete(self) -> tuple[bool, ...]:
+        """Per budget, whether every task has a result."""
+        return tuple(found == total for found, total in self.tasks)
 
 
 def curve_rows(experiment: Experiment, store: ResultStore | Stored, seed: int = 0) -> list[CurveRow]:
@@ -625,37 +646,51 @@ def curve_rows(experiment: Experiment, store: ResultStore | Stored, seed: int = 
     best = max(planners, key=lambda r: r.summaries["return"].mean, default=None)
     out = []
     for name, budgets in experiment.budgets.items():
-        summaries = []
-        for b in budgets:
-            found = stored.get((0, budget_row(name, b)), {})
-            summaries.append(Summary.of([_task_mean(r["records"], "return") for r in found.values()]))
-        if not summaries or summaries[-1].n == 0:
+        keys = [(0, budget_row(name, b)) for b in budgets]
+        summaries = [Summary.of([_task_mean(r["records"], "return") for r in stored.get(k, {}).values()])
+                     for k in keys]
+        if not summaries or all(s.n == 0 for s in summaries):
             continue
+        tasks = tuple((len(stored.get(k, {})), stored.expected.get(k, 0)) for k in keys)
+        done = [stored.complete(k) for k in keys]
         last, before = summaries[-1], summaries[-2] if len(summaries) > 1 else None
-        flat = before is not None and before.n > 0 and abs(last.mean - before.mean) <= min(last.ci95, before.ci95)
-        target = 0.9 * last.mean if last.mean > 0 else last.mean
-        near = next((b for b, s in zip(budgets, summaries) if s.n and s.mean >= target), budgets[-1])
+        flat = None
+        if done[-1] and (before is None or done[-2]):
+            flat = before is not None and abs(last.mean - before.mean) <= min(last.ci95, before.ci95)
+        near = None
+        if all(done):
+            target = 0.9 * last.mean if last.mean > 0 else last.mean
+            near = next((b for b, s in zip(budgets, summaries) if s.n and s.mean >= target), budgets[-1])
         ratio = None
-        if best is not None:
-            mine = _layout_means(stored.get((0, budget_row(name, budgets[-1])), {}), "return")
+        if best is not None and done[-1] and stored.complete((0, best.algorithm)):
+            mine = _layout_means(stored.get(keys[-1], {}), "return")
             base = _layout_means(stored.get((0, best.algorithm), {}), "return")
             common = sorted(set(mine) & set(base))
             ratio = Ratio.of(np.array([mine[k] for k in common]), np.array([base[k] for k in common]), rng)
         out.append(CurveRow(experiment.name, name, names.get(name, name), tuple(budgets), tuple(summaries), flat,
-                            near, best.label if best else "", best.summaries["return"] if best else None, ratio))
+                            near, best.label if best else "", best.summaries["return"] if best else None, ratio,
+                            tasks))
     return out
 
 
 def curves_to_markdown(rows: list[CurveRow]) -> str:
     """The learning curves as a Markdown table: return at each budget, whether flat, the
-    budget within 10 % of the last, and the last budget against the best planner."""
+    budget within 10 % of the last, and the last budget against the best planner. An
+    incomplete budget's cell says how many of its tasks have a result, and a verdict that
+    needs an incomplete budget reads ``incomplete``."""
     heads = ["experiment", "algorithm", "return at each budget (steps: mean ± 95 % CI)", "flat at the end",
              "within 10 % from", "last / best planner"]
     cells = []
     for r in rows:
-        curve = "; ".join(f"{b:,}: {_cell(s, 1.0, 2)}" for b, s in zip(r.budgets, r.returns))
-        ratio = _ratio_cell(r.ratio) + f" ({r.reference})" if r.ratio is not None else "n/a"
-        cells.append([r.experiment, r.label, curve, "yes" if r.flat else "no", f"{r.near_plateau:,}", ratio])
+        parts = []
+        for b, s, (found, total) in zip(r.budgets, r.returns, r.tasks):
+            cell = _cell(s, 1.0, 2) if found else "not run"
+            parts.append(f"{b:,}: {cell}" + (f" ({found} of {total} tasks)" if 0 < found < total else ""))
+        ratio = _ratio_cell(r.ratio) + f" ({r.reference})" if r.ratio is not None else (
+            "n/a" if r.reference_return is None else "incomplete")
+        flat = "incomplete" if r.flat is None else ("yes" if r.flat else "no")
+        near = "incomplete" if r.near_plateau is None else f"{r.near_plateau:,}"
+        cells.append([r.experiment, r.label, "; ".join(parts), flat, near, ratio])
     return _markdown(heads, cells)
 
 

@@ -88,6 +88,26 @@ def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
     assert main(["plot", str(tmp_path / "s.sqlite"), "--outdir", str(tmp_path / "plotted")]) == 0
     assert (tmp_path / "plotted" / "fig-learning-curve.csv").read_text().splitlines() == lines
 
+    # a run stopped part-way: one task of the last budget has no result. Its mean is shown
+    # with its task count, no verdict is drawn from it, and the figure leaves it out.
+    import sqlite3
+
+    last_key = next(t.key for t in e.tasks() if t.budget == 256)
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        db.execute("DELETE FROM results WHERE key = ?", (last_key,))
+    db.close()
+    with ResultStore(tmp_path / "s.sqlite", readonly=True) as store:
+        (partial,) = tables.curve_rows(e, store)
+        figure = plots.learning_curve_figure([e], store, tmp_path / "partial")
+    assert partial.tasks == ((4, 4), (4, 4), (3, 4)) and partial.complete == (True, True, False)
+    assert partial.flat is None and partial.near_plateau is None and partial.ratio is None
+    assert partial.returns[-1].n == 3 and partial.returns[0] == row.returns[0]
+    text = tables.curves_to_markdown([partial])
+    assert "256: " in text and "(3 of 4 tasks)" in text and text.count("incomplete") == 3
+    kept = (tmp_path / "partial" / "fig-learning-curve.csv").read_text().splitlines()
+    assert kept == [line for line in lines if not line.startswith("curve,ppo,256,")]
+    assert len(kept) == len(lines) - 1
+
 
 def test_a_checkpoint_evaluates_like_the_run_of_its_length(tmp_path):
     """A budget's row is the same whether its model came from a longer run's checkpoint or
