@@ -48,7 +48,7 @@ import csv
 import io
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -137,7 +137,7 @@ class Stored:
     """Tasks without a result."""
     failures: dict[str, str]
     """Task key -> reason, for the tasks whose last try failed."""
-    expected: dict[tuple[int, str], int] = field(default_factory=dict)
+    expected: dict[tuple[int, str], int]
     """The experiment's task count by (sweep point index, row)."""
 
     def complete(self, key: tuple[int, str]) -> bool:
