@@ -468,9 +468,14 @@ def table(store_path, name, fmt, output) -> None:  # type: ignore[no-untyped-def
 @cli.command()
 @click.argument("store_path", metavar="STORE", type=click.Path(dir_okay=False))
 @click.option("--outdir", type=click.Path(file_okay=False), default="figures")
-def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
+@click.option("--experiment", "names", multiple=True, metavar="NAME",
+              help="Only this experiment's figures (repeatable; default: every experiment in the store). "
+                   "The learning curves of the named experiments are drawn as fig-NAME.")
+def plot(store_path, outdir, names) -> None:  # type: ignore[no-untyped-def]
     """Draw the figure of every experiment in a results store that defines one, and the
-    learning curves (``fig-learning-curve``) of the experiments with budgets it holds."""
+    learning curves (``fig-learning-curve``) of the experiments with budgets it holds.
+    ``--experiment`` draws only the named experiments' figures, and their learning curves as
+    ``fig-NAME`` (names joined by '+'), so that a store's curves can be drawn apart."""
     from swiptopt.benchmark import plots
     from swiptopt.benchmark.store import ResultStore
 
@@ -478,6 +483,12 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
     with ResultStore(store_path, readonly=True) as store:
         drawn = []
         latest = {e.name: e for e in store.experiments()}  # the latest run of each
+        unknown = [n for n in names if n not in latest]
+        if unknown:
+            raise ConfigError(f"--experiment {unknown[0]!r}: {store_path} holds no run of it "
+                              f"(it holds {', '.join(sorted(latest)) or 'none'})", "--experiment")
+        if names:
+            latest = {n: latest[n] for n in dict.fromkeys(names)}
         for experiment in latest.values():
             if not experiment.figure:
                 continue
@@ -487,7 +498,8 @@ def plot(store_path, outdir) -> None:  # type: ignore[no-untyped-def]
             drawn += figure.paths
         curves = [e for e in latest.values() if e.budgets]
         if curves:
-            drawn += plots.learning_curve_figure(curves, store, outdir).paths
+            stem = "fig-" + "+".join(e.name for e in curves) if names else "fig-learning-curve"
+            drawn += plots.learning_curve_figure(curves, store, outdir, stem=stem).paths
     if not drawn:
         raise ConfigError(f"no figure to draw from {store_path}", "figure")
     click.echo("\n".join(map(str, drawn)))

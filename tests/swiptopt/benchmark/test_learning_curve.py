@@ -87,6 +87,12 @@ def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
 
     assert main(["plot", str(tmp_path / "s.sqlite"), "--outdir", str(tmp_path / "plotted")]) == 0
     assert (tmp_path / "plotted" / "fig-learning-curve.csv").read_text().splitlines() == lines
+    # one experiment of a store, drawn apart under its own name; a name the store lacks is refused
+    assert main(["plot", str(tmp_path / "s.sqlite"), "--outdir", str(tmp_path / "one"), "--experiment", "curve"]) == 0
+    assert (tmp_path / "one" / "fig-curve.csv").read_text().splitlines() == lines
+    assert not (tmp_path / "one" / "fig-learning-curve.csv").exists()
+    assert main(["plot", str(tmp_path / "s.sqlite"), "--outdir", str(tmp_path / "none"), "--experiment", "nope"]) == 2
+    assert not (tmp_path / "none").exists()
 
     # a run stopped part-way: one task of the last budget has no result. Its mean is shown
     # with its task count, no verdict is drawn from it, and the figure leaves it out.
@@ -157,3 +163,19 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     with ResultStore(tmp_path / "s.sqlite", readonly=True) as store:
         recorded = {json.loads(json.dumps(r["config"]))["name"] for r in store.runs()}
     assert recorded == set(GROUPS["learning-curve"])
+
+
+def test_the_grid_ppo_dqn_file_is_the_built_in_curve_without_the_stop_choosing_agent():
+    """benchmarks/learning-curve-grid-ppo-dqn.toml (the per-layout curve docs/results.md
+    quotes) runs the built-in learning-curve's PPO and DQN and planner tasks, no other: the
+    same keys, so a store of either serves the other."""
+    from pathlib import Path
+
+    path = Path(__file__).parents[3] / "benchmarks" / "learning-curve-grid-ppo-dqn.toml"
+    subset = Experiment.from_toml(path)
+    (built_in,) = [e for e in learning_curves() if e.name == "learning-curve"]
+    ours = {t.key for t in subset.tasks()}
+    theirs = {t.key: t.algorithm for t in built_in.tasks()}
+    assert ours <= set(theirs)
+    assert {a for k, a in theirs.items() if k not in ours} == {"stop_ppo"}
+    assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k != "stop_ppo"}
