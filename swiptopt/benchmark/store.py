@@ -363,10 +363,17 @@ class ResultStore:
 
     def _check_identity(self) -> None:
         with self._guard("checking it"):
-            problems = [r[0] for r in self._db.execute("PRAGMA quick_check")]
+            # one read transaction, so that the mark and the tables come from the same
+            # moment: read apart, another process creating the store between the two reads
+            # shows an unmarked database holding our tables, which is not a store of ours
+            self._execute_waiting("BEGIN")
+            try:
+                problems = [r[0] for r in self._db.execute("PRAGMA quick_check")]
+                app, version, tables = self._identity()
+            finally:
+                self._db.execute("COMMIT")
             if problems != ["ok"]:
                 raise StoreError(self.path, f"is damaged (SQLite's check: {problems[0]})")
-            app, version, tables = self._identity()
         if app == APPLICATION_ID:
             self._check_ours(version, tables)
         elif app == 0 and not tables:

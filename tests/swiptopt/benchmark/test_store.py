@@ -8,6 +8,7 @@ import shutil
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -484,6 +485,66 @@ def test_many_processes_opening_one_new_store_at_once_all_succeed(tmp_path):
         results = [p.communicate(timeout=120) for p in procs]
         assert [p.returncode for p in procs] == [0] * 6, [err for _, err in results if err]
         assert [out.strip() for out, _ in results] == ["0"] * 6
+
+
+class _CreatedMeanwhile:
+    """A connection on which, as soon as the new store's mark has been read, another process
+    (a thread with its own connection here) creates the store, and the reader goes on only
+    once that creation has committed or is stuck waiting for the reader's lock."""
+
+    def __init__(self, db, path):
+        self.db, self.path, self.thread, self.error = db, path, None, None
+
+    def _create(self):
+        try:
+            ResultStore(self.path, timeout_s=30.0).close()
+        except BaseException as exc:  # reported by the test
+            self.error = exc
+
+    def execute(self, sql, *args):
+        cursor = self.db.execute(sql, *args)
+        if sql == "PRAGMA application_id" and self.thread is None:
+            cursor = list(cursor.fetchall())  # read before the other process writes
+            self.thread = threading.Thread(target=self._create)
+            self.thread.start()
+            self.thread.join(timeout=1.0)  # committed, or waiting for our read lock
+            return _Rows(cursor)
+        return cursor
+
+    def __getattr__(self, name):
+        return getattr(self.db, name)
+
+
+class _Rows:
+    def __init__(self, rows):
+        self.rows = rows
+
+    def fetchone(self):
+        return self.rows[0]
+
+
+def test_a_store_created_by_another_process_while_being_checked_is_opened(tmp_path, monkeypatch):
+    # the mark and the tables are read in one transaction: read apart, the other process's
+    # creation landing between the two reads showed an unmarked database with our tables,
+    # refused as "not a swiptopt results store" (seen in CI with six processes at once)
+    path = tmp_path / "new.sqlite"
+    real_connect = ResultStore._connect
+    proxies = []
+
+    def connect(self):
+        if proxies:  # the other process's own connection
+            return real_connect(self)
+        proxies.append(_CreatedMeanwhile(real_connect(self), path))
+        return proxies[-1]
+
+    monkeypatch.setattr(ResultStore, "_connect", connect)
+    with ResultStore(path, timeout_s=30.0) as s:
+        assert s.count() == 0
+    monkeypatch.undo()
+    proxies[0].thread.join(timeout=30.0)
+    assert proxies[0].error is None and not proxies[0].thread.is_alive()
+    with ResultStore(path) as s:
+        assert s.count() == 0
 
 
 class _FailingFirst:
