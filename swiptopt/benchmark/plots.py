@@ -341,7 +341,9 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
             if not rows:
                 ax.text(0.5, 0.5, "not complete in this store", ha="center", va="center", transform=ax.transAxes)
             ax.set_xscale("log", base=2)
-            ax.set_xlabel("training budget (steps; stop-choosing PPO: decisions)")
+            # the stop-choosing agent's budget counts decisions (a stop and its dwell), not steps
+            unit = "steps; stop-choosing PPO: decisions" if "stop_ppo" in experiment.budgets else "steps"
+            ax.set_xlabel(f"training budget ({unit})")
             ax.set_ylabel("return")
             ax.set_title(f"{experiment.name} ({experiment.world})")
             ax.grid(alpha=0.3)
