@@ -11,6 +11,7 @@ from swiptopt.benchmark import plots, tables
 from swiptopt.benchmark.experiment import GROUPS, Experiment, learning_curves, load_experiments
 from swiptopt.benchmark.runner import _batches, execute
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.cli import main
 from swiptopt.errors import ConfigError
 
 pytest.importorskip("stable_baselines3")
@@ -179,3 +180,23 @@ def test_the_grid_ppo_dqn_file_is_the_built_in_curve_without_the_stop_choosing_a
     assert ours <= set(theirs)
     assert {a for k, a in theirs.items() if k not in ours} == {"stop_ppo"}
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k != "stop_ppo"}
+
+
+def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
+    """benchmarks/stores/learning-curve-grid-ppo-dqn.sqlite is the store of the run that
+    docs/results.md and the README quote: its table, printed from the stored data alone,
+    carries their numbers (and a file of the run that the docs misquote fails here)."""
+    from pathlib import Path
+
+    root = Path(__file__).parents[3]
+    out = tmp_path / "curve.md"
+    assert main(["table", str(root / "benchmarks" / "stores" / "learning-curve-grid-ppo-dqn.sqlite"),
+                 "--experiment", "learning-curve-grid-ppo-dqn", "--format", "markdown", "--output", str(out)]) == 0
+    rows = {line.split(" | ")[1]: line for line in out.read_text().splitlines()
+            if line.startswith("| learning-curve-grid-ppo-dqn |")}
+    docs = (root / "docs" / "results.md").read_text()
+    assert set(rows) == {"PPO", "DQN"}
+    for line in rows.values():
+        assert line in docs
+    assert "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)" in rows["PPO"]
+    assert "1,048,576: 19.39 ± 1.17 | no | 1,048,576 | 0.91× [0.87–0.96] 0/6 (MILP)" in rows["DQN"]
