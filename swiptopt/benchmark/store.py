@@ -371,7 +371,8 @@ class ResultStore:
                 problems = [r[0] for r in self._db.execute("PRAGMA quick_check")]
                 app, version, tables = self._identity()
             finally:
-                self._db.execute("COMMIT")
+                if self._db.in_transaction:  # an error may have ended it already
+                    self._db.execute("COMMIT")
             if problems != ["ok"]:
                 raise StoreError(self.path, f"is damaged (SQLite's check: {problems[0]})")
         if app == APPLICATION_ID:
