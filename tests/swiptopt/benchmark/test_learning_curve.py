@@ -185,7 +185,7 @@ def test_the_grid_ppo_dqn_file_is_the_built_in_curve_without_the_stop_choosing_a
 def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
     """benchmarks/stores/learning-curve-grid-ppo-dqn.sqlite is the store of the run that
     docs/results.md and the README quote: its table, printed from the stored data alone,
-    carries their numbers (and a file of the run that the docs misquote fails here)."""
+    carries their numbers (a page that misquotes the run fails here)."""
     from pathlib import Path
 
     root = Path(__file__).parents[3]

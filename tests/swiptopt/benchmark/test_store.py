@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+import types
 
 import pytest
 
@@ -504,23 +505,15 @@ class _CreatedMeanwhile:
     def execute(self, sql, *args):
         cursor = self.db.execute(sql, *args)
         if sql == "PRAGMA application_id" and self.thread is None:
-            cursor = list(cursor.fetchall())  # read before the other process writes
+            row = cursor.fetchone()  # read before the other process writes
             self.thread = threading.Thread(target=self._create)
             self.thread.start()
             self.thread.join(timeout=1.0)  # committed, or waiting for our read lock
-            return _Rows(cursor)
+            return types.SimpleNamespace(fetchone=lambda: row)
         return cursor
 
     def __getattr__(self, name):
         return getattr(self.db, name)
-
-
-class _Rows:
-    def __init__(self, rows):
-        self.rows = rows
-
-    def fetchone(self):
-        return self.rows[0]
 
 
 def test_a_store_created_by_another_process_while_being_checked_is_opened(tmp_path, monkeypatch):
