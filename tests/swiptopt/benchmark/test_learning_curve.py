@@ -199,4 +199,5 @@ def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
     for line in rows.values():
         assert line in docs
     assert "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)" in rows["PPO"]
-    assert "1,048,576: 19.39 ± 1.17 | no | 1,048,576 | 0.91× [0.87–0.96] 0/6 (MILP)" in rows["DQN"]
+    assert "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)" \
+        in rows["DQN"]
