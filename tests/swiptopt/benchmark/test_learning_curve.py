@@ -166,20 +166,23 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     assert recorded == set(GROUPS["learning-curve"])
 
 
-def test_the_grid_ppo_dqn_file_is_the_built_in_curve_without_the_stop_choosing_agent():
+@pytest.mark.parametrize(("file", "left_out"), [("learning-curve-grid-ppo-dqn.toml", {"stop_ppo"}),
+                                               ("learning-curve-grid-stop-ppo.toml", {"ppo", "dqn"})])
+def test_a_grid_curve_file_is_the_built_in_curve_without_the_other_agents(file, left_out):
     """benchmarks/learning-curve-grid-ppo-dqn.toml (the per-layout curve docs/results.md
-    quotes) runs the built-in learning-curve's PPO and DQN and planner tasks, no other: the
-    same keys, so a store of either serves the other."""
+    quotes) and benchmarks/learning-curve-grid-stop-ppo.toml run the built-in
+    learning-curve's tasks of their agents and the planners, no other: the same keys, so a
+    store of either serves the built-in."""
     from pathlib import Path
 
-    path = Path(__file__).parents[3] / "benchmarks" / "learning-curve-grid-ppo-dqn.toml"
+    path = Path(__file__).parents[3] / "benchmarks" / file
     subset = Experiment.from_toml(path)
     (built_in,) = [e for e in learning_curves() if e.name == "learning-curve"]
     ours = {t.key for t in subset.tasks()}
     theirs = {t.key: t.algorithm for t in built_in.tasks()}
     assert ours <= set(theirs)
-    assert {a for k, a in theirs.items() if k not in ours} == {"stop_ppo"}
-    assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k != "stop_ppo"}
+    assert {a for k, a in theirs.items() if k not in ours} == left_out
+    assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
 def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
