@@ -204,3 +204,18 @@ def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
     assert "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)" in rows["PPO"]
     assert "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)" \
         in rows["DQN"]
+
+
+def test_the_stored_per_layout_stop_choosing_run_prints_the_curve_docs_quote(tmp_path):
+    """benchmarks/stores/learning-curve-grid-stop-ppo.sqlite is the store of the run
+    docs/results.md quotes for the stop-choosing PPO per layout: its table, printed from the
+    stored data alone, is the row the page shows."""
+    from pathlib import Path
+
+    root = Path(__file__).parents[3]
+    out = tmp_path / "curve.md"
+    assert main(["table", str(root / "benchmarks" / "stores" / "learning-curve-grid-stop-ppo.sqlite"),
+                 "--experiment", "learning-curve-grid-stop-ppo", "--format", "markdown", "--output", str(out)]) == 0
+    (row,) = [line for line in out.read_text().splitlines() if line.startswith("| learning-curve-grid-stop-ppo |")]
+    assert row in (root / "docs" / "results.md").read_text()
+    assert "262,144: 19.82 ± 0.98 | yes | 32,768 | 0.93× [0.92–0.95] 0/6 (MILP)" in row
