@@ -185,37 +185,28 @@ def test_a_grid_curve_file_is_the_built_in_curve_without_the_other_agents(file, 
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
-def test_the_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path):
-    """benchmarks/stores/learning-curve-grid-ppo-dqn.sqlite is the store of the run that
-    docs/results.md and the README quote: its table, printed from the stored data alone,
-    carries their numbers (a page that misquotes the run fails here)."""
+_PPO_DQN_ROWS = {
+    "PPO": "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)",
+    "DQN": "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)",
+}
+_STOP_ROWS = {"stop-choosing PPO": "262,144: 19.82 ± 0.98 | yes | 32,768 | 0.93× [0.92–0.95] 0/6 (MILP)"}
+
+
+@pytest.mark.parametrize(("name", "expected"), [("learning-curve-grid-ppo-dqn", _PPO_DQN_ROWS),
+                                                ("learning-curve-grid-stop-ppo", _STOP_ROWS)])
+def test_a_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path, name, expected):
+    """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md and the
+    README quote: its table, printed from the stored data alone, carries their numbers (a
+    page that misquotes the run fails here)."""
     from pathlib import Path
 
     root = Path(__file__).parents[3]
     out = tmp_path / "curve.md"
-    assert main(["table", str(root / "benchmarks" / "stores" / "learning-curve-grid-ppo-dqn.sqlite"),
-                 "--experiment", "learning-curve-grid-ppo-dqn", "--format", "markdown", "--output", str(out)]) == 0
-    rows = {line.split(" | ")[1]: line for line in out.read_text().splitlines()
-            if line.startswith("| learning-curve-grid-ppo-dqn |")}
+    assert main(["table", str(root / "benchmarks" / "stores" / f"{name}.sqlite"),
+                 "--experiment", name, "--format", "markdown", "--output", str(out)]) == 0
+    rows = {line.split(" | ")[1]: line for line in out.read_text().splitlines() if line.startswith(f"| {name} |")}
     docs = (root / "docs" / "results.md").read_text()
-    assert set(rows) == {"PPO", "DQN"}
-    for line in rows.values():
-        assert line in docs
-    assert "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)" in rows["PPO"]
-    assert "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)" \
-        in rows["DQN"]
-
-
-def test_the_stored_per_layout_stop_choosing_run_prints_the_curve_docs_quote(tmp_path):
-    """benchmarks/stores/learning-curve-grid-stop-ppo.sqlite is the store of the run
-    docs/results.md quotes for the stop-choosing PPO per layout: its table, printed from the
-    stored data alone, is the row the page shows."""
-    from pathlib import Path
-
-    root = Path(__file__).parents[3]
-    out = tmp_path / "curve.md"
-    assert main(["table", str(root / "benchmarks" / "stores" / "learning-curve-grid-stop-ppo.sqlite"),
-                 "--experiment", "learning-curve-grid-stop-ppo", "--format", "markdown", "--output", str(out)]) == 0
-    (row,) = [line for line in out.read_text().splitlines() if line.startswith("| learning-curve-grid-stop-ppo |")]
-    assert row in (root / "docs" / "results.md").read_text()
-    assert "262,144: 19.82 ± 0.98 | yes | 32,768 | 0.93× [0.92–0.95] 0/6 (MILP)" in row
+    assert set(rows) == set(expected)
+    for algorithm, fragment in expected.items():
+        assert rows[algorithm] in docs
+        assert fragment in rows[algorithm]
