@@ -166,18 +166,21 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     assert recorded == set(GROUPS["learning-curve"])
 
 
-@pytest.mark.parametrize(("file", "left_out"), [("learning-curve-grid-ppo-dqn.toml", {"stop_ppo"}),
-                                               ("learning-curve-grid-stop-ppo.toml", {"ppo", "dqn"})])
-def test_a_grid_curve_file_is_the_built_in_curve_without_the_other_agents(file, left_out):
-    """benchmarks/learning-curve-grid-ppo-dqn.toml (the per-layout curve docs/results.md
-    quotes) and benchmarks/learning-curve-grid-stop-ppo.toml run the built-in
-    learning-curve's tasks of their agents and the planners, no other: the same keys, so a
-    store of either serves the built-in."""
+@pytest.mark.parametrize(("file", "built_in_name", "left_out"), [
+    ("learning-curve-grid-ppo-dqn.toml", "learning-curve", {"stop_ppo"}),
+    ("learning-curve-grid-stop-ppo.toml", "learning-curve", {"ppo", "dqn"}),
+    ("learning-curve-harbour-stop-ppo.toml", "learning-curve-harbour", {"ppo", "sac"}),
+    ("learning-curve-harbour-ppo.toml", "learning-curve-harbour", {"stop_ppo", "sac"}),
+])
+def test_a_per_layout_curve_file_is_the_built_in_curve_without_the_other_agents(file, built_in_name, left_out):
+    """The per-layout curve files under benchmarks/ (the runs docs/results.md quotes) run
+    their built-in curve's tasks of their agents and the planners, no other: the same keys,
+    so a store of either serves the built-in."""
     from pathlib import Path
 
     path = Path(__file__).parents[3] / "benchmarks" / file
     subset = Experiment.from_toml(path)
-    (built_in,) = [e for e in learning_curves() if e.name == "learning-curve"]
+    (built_in,) = [e for e in learning_curves() if e.name == built_in_name]
     ours = {t.key for t in subset.tasks()}
     theirs = {t.key: t.algorithm for t in built_in.tasks()}
     assert ours <= set(theirs)
