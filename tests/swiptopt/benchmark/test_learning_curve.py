@@ -171,6 +171,7 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     ("learning-curve-grid-stop-ppo.toml", "learning-curve", {"ppo", "dqn"}),
     ("learning-curve-harbour-stop-ppo.toml", "learning-curve-harbour", {"ppo", "sac"}),
     ("learning-curve-harbour-ppo.toml", "learning-curve-harbour", {"stop_ppo", "sac"}),
+    ("learning-curve-harbour-sac.toml", "learning-curve-harbour", {"stop_ppo", "ppo"}),
 ])
 def test_a_per_layout_curve_file_is_the_built_in_curve_without_the_other_agents(file, built_in_name, left_out):
     """The per-layout curve files under benchmarks/ (the runs docs/results.md quotes) run
