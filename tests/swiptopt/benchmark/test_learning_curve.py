@@ -196,6 +196,8 @@ _PPO_DQN_ROWS = {
 _STOP_ROWS = {"stop-choosing PPO": "262,144: 19.82 ± 0.98 | yes | 32,768 | 0.93× [0.92–0.95] 0/6 (MILP)"}
 _HARBOUR_PPO_ROWS = {
     "PPO": "1,048,576: 9.21 ± 1.10; 2,097,152: 9.82 ± 1.15 | yes | 1,048,576 | 0.26× [0.21–0.32] 0/6 (OMPL tour)"}
+_HARBOUR_SAC_ROWS = {
+    "SAC": "131,072: 3.08 ± 0.85; 262,144: 4.00 ± 1.39 | no | 262,144 | 0.11× [0.07–0.14] 0/6 (OMPL tour)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -203,7 +205,8 @@ _HARBOUR_STOP_ROWS = {
 @pytest.mark.parametrize(("name", "expected"), [("learning-curve-grid-ppo-dqn", _PPO_DQN_ROWS),
                                                 ("learning-curve-grid-stop-ppo", _STOP_ROWS),
                                                 ("learning-curve-harbour-stop-ppo", _HARBOUR_STOP_ROWS),
-                                                ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS)])
+                                                ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS),
+                                                ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS)])
 def test_a_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md and the
     README quote: its table, printed from the stored data alone, carries their numbers (a
