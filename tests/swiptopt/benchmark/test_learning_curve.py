@@ -172,11 +172,12 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     ("learning-curve-harbour-stop-ppo.toml", "learning-curve-harbour", {"ppo", "sac"}),
     ("learning-curve-harbour-ppo.toml", "learning-curve-harbour", {"stop_ppo", "sac"}),
     ("learning-curve-harbour-sac.toml", "learning-curve-harbour", {"stop_ppo", "ppo"}),
+    ("learning-curve-harbour-across-ppo.toml", "learning-curve-harbour-across", {"stop_ppo", "sac"}),
 ])
-def test_a_per_layout_curve_file_is_the_built_in_curve_without_the_other_agents(file, built_in_name, left_out):
-    """The per-layout curve files under benchmarks/ (the runs docs/results.md quotes) run
-    their built-in curve's tasks of their agents and the planners, no other: the same keys,
-    so a store of either serves the built-in."""
+def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built_in_name, left_out):
+    """The curve files under benchmarks/ (the runs docs/results.md quotes) run their built-in
+    curve's tasks of their agents and the planners, no other: the same keys, so a store of
+    either serves the built-in."""
     from pathlib import Path
 
     path = Path(__file__).parents[3] / "benchmarks" / file
@@ -198,6 +199,8 @@ _HARBOUR_PPO_ROWS = {
     "PPO": "1,048,576: 9.21 ± 1.10; 2,097,152: 9.82 ± 1.15 | yes | 1,048,576 | 0.26× [0.21–0.32] 0/6 (OMPL tour)"}
 _HARBOUR_SAC_ROWS = {
     "SAC": "131,072: 3.08 ± 0.85; 262,144: 4.00 ± 1.39 | no | 262,144 | 0.11× [0.07–0.14] 0/6 (OMPL tour)"}
+_HARBOUR_ACROSS_PPO_ROWS = {
+    "PPO": "4,194,304: 8.29 ± 0.87; 8,388,608: 8.78 ± 1.02 | yes | 4,194,304 | 0.24× [0.21–0.26] 0/8 (OMPL tour)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -206,8 +209,9 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-grid-stop-ppo", _STOP_ROWS),
                                                 ("learning-curve-harbour-stop-ppo", _HARBOUR_STOP_ROWS),
                                                 ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS),
-                                                ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS)])
-def test_a_stored_per_layout_run_prints_the_curve_docs_quote(tmp_path, name, expected):
+                                                ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS),
+                                                ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS)])
+def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md and the
     README quote: its table, printed from the stored data alone, carries their numbers (a
     page that misquotes the run fails here)."""
