@@ -5,8 +5,9 @@ For each deep-RL algorithm of each world, two trainings through :func:`rl.deep.t
 (one torch thread, on the CPU, torch's pinned CPU paths), interleaved so that both see the
 same machine load:
 
-- **SB3's defaults**: one copy of the environment, SB3's hyperparameters, its [64, 64]
-  network (SB3's DummyVecEnv around the single env);
+- **SB3's defaults**: one copy of the environment, SB3's hyperparameters, its default
+  networks ([64, 64] for PPO and DQN, [256, 256] for SAC; SB3's DummyVecEnv around the
+  single env);
 - **the default configuration**: the benchmark's own settings for the algorithm
   (:data:`swiptopt.benchmark.algorithms.ALGORITHMS`: n_envs copies stepped together by the
   compiled vector env, the tuned rollout, batch and network).
