@@ -173,6 +173,7 @@ def test_the_grid_curves_run_in_quick(tmp_path):
     ("learning-curve-harbour-ppo.toml", "learning-curve-harbour", {"stop_ppo", "sac"}),
     ("learning-curve-harbour-sac.toml", "learning-curve-harbour", {"stop_ppo", "ppo"}),
     ("learning-curve-harbour-across-ppo.toml", "learning-curve-harbour-across", {"stop_ppo", "sac"}),
+    ("learning-curve-harbour-across-sac.toml", "learning-curve-harbour-across", {"stop_ppo", "ppo"}),
 ])
 def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built_in_name, left_out):
     """The curve files under benchmarks/ (the runs docs/results.md quotes) run their built-in
@@ -201,6 +202,8 @@ _HARBOUR_SAC_ROWS = {
     "SAC": "131,072: 3.08 ± 0.85; 262,144: 4.00 ± 1.39 | no | 262,144 | 0.11× [0.07–0.14] 0/6 (OMPL tour)"}
 _HARBOUR_ACROSS_PPO_ROWS = {
     "PPO": "4,194,304: 8.29 ± 0.87; 8,388,608: 8.78 ± 1.02 | yes | 4,194,304 | 0.24× [0.21–0.26] 0/8 (OMPL tour)"}
+_HARBOUR_ACROSS_SAC_ROWS = {
+    "SAC": "524,288: 6.23 ± 0.62; 1,048,576: 8.78 ± 0.87 | no | 1,048,576 | 0.24× [0.22–0.26] 0/8 (OMPL tour)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -210,7 +213,8 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-harbour-stop-ppo", _HARBOUR_STOP_ROWS),
                                                 ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS),
                                                 ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS),
-                                                ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS)])
+                                                ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS),
+                                                ("learning-curve-harbour-across-sac", _HARBOUR_ACROSS_SAC_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md and the
     README quote: its table, printed from the stored data alone, carries their numbers (a
