@@ -720,9 +720,9 @@ def _doubled(budgets: tuple[int, ...]) -> list[int]:
     return [2 * b for b in budgets]
 
 
-def _one_doubling_more(budgets: tuple[int, ...]) -> list[int]:
-    """A curve's budgets and twice its last (for a curve still rising at its end)."""
-    return [*budgets, 2 * budgets[-1]]
+def _doublings_more(budgets: tuple[int, ...] | list[int], n: int = 1) -> list[int]:
+    """A curve's budgets and its last doubled n times (for a curve still rising at its end)."""
+    return [*budgets, *(budgets[-1] << k for k in range(1, n + 1))]
 
 
 #: Deep RL in the suites: one model per algorithm and training seed, trained across the
@@ -739,11 +739,11 @@ def _one_doubling_more(budgets: tuple[int, ...]) -> list[int]:
 #: SAC step costs many PPO steps: a lineage to 2,097,152 took about 61 CPU-minutes) and the
 #: stop-choosing agent's from half the per-layout curve's first budget to twice its last.
 ACROSS_BUDGETS = {
-    "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doubled(_GRID_CURVE) + [4 * _GRID_CURVE[-1]],
+    "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doublings_more(_doubled(_GRID_CURVE)),
              "stop_ppo": _doubled(_STOP_CURVE)},
-    "harbour": {"ppo": [*_doubled(_GRID_CURVE), 4 * _GRID_CURVE[-1], 8 * _GRID_CURVE[-1]],
-                "sac": [*_SAC_CURVE, 2 * _SAC_CURVE[-1], 4 * _SAC_CURVE[-1], 8 * _SAC_CURVE[-1]],
-                "stop_ppo": [_STOP_CURVE[0] // 2, *_one_doubling_more(_STOP_CURVE)]},
+    "harbour": {"ppo": _doublings_more(_doubled(_GRID_CURVE), 2),
+                "sac": _doublings_more(_SAC_CURVE, 3),
+                "stop_ppo": [_STOP_CURVE[0] // 2, *_doublings_more(_STOP_CURVE)]},
 }
 COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}
 _COMPARE_DEEP = {name: {"timesteps": steps, "training": "across_layouts"}
@@ -790,7 +790,7 @@ def learning_curves() -> list[Experiment]:
             # DQN per layout one doubling further: its curve still rose at 1,048,576 steps
             # (17.12 -> 19.39) and is flat at 2,097,152 (18.80, docs/results.md); the shorter
             # budgets' tasks are unchanged
-            budgets={"ppo": list(_GRID_CURVE), "dqn": _one_doubling_more(_GRID_CURVE),
+            budgets={"ppo": list(_GRID_CURVE), "dqn": _doublings_more(_GRID_CURVE),
                      "stop_ppo": list(_STOP_CURVE)},
             layouts=CURVE_LAYOUTS, baseline="milp", **common,
         ),
@@ -813,7 +813,7 @@ def learning_curves() -> list[Experiment]:
             # PPO per layout one doubling further: its curve still rose at 1,048,576 steps
             # (8.13 -> 9.21) and is flat at 2,097,152 (9.82, docs/results.md); the shorter
             # budgets' tasks are unchanged
-            budgets={"ppo": _one_doubling_more(_GRID_CURVE), "sac": list(_SAC_CURVE),
+            budgets={"ppo": _doublings_more(_GRID_CURVE), "sac": list(_SAC_CURVE),
                      "stop_ppo": list(_STOP_CURVE)},
             layouts=CURVE_LAYOUTS, baseline="ompl_tour", **common,
         ),
