@@ -50,24 +50,27 @@ class NativeThreadLimit(contextlib.AbstractContextManager):
     ``with`` block) gives the pools their previous sizes back."""
 
     def __init__(self) -> None:
+        # torch's size is read before threadpoolctl limits the OpenMP pool torch sizes itself
+        # by, and restored first, so that the OpenMP pools get their own sizes back last
+        self._torch: tuple[Any, int] | None = None
+        torch = sys.modules.get("torch")
+        if torch is not None:  # torch's intra-op pool is its own, not only OpenMP's
+            self._torch = (torch, torch.get_num_threads())
         try:
             from threadpoolctl import threadpool_limits
         except ImportError:  # the bench extra; scikit-learn brings it too
             self._pools = None
         else:
             self._pools = threadpool_limits(limits=1)
-        self._torch: tuple[Any, int] | None = None
-        torch = sys.modules.get("torch")
-        if torch is not None:  # torch's intra-op pool is its own, not only OpenMP's
-            self._torch = (torch, torch.get_num_threads())
+        if torch is not None:
             torch.set_num_threads(1)
 
     def restore(self) -> None:
-        if self._pools is not None:
-            self._pools.restore_original_limits()
         if self._torch is not None:
             torch, threads = self._torch
             torch.set_num_threads(threads)
+        if self._pools is not None:
+            self._pools.restore_original_limits()
 
     def __exit__(self, *exc: Any) -> None:
         self.restore()

@@ -129,10 +129,12 @@ def test_limit_native_threads_limits_and_restores():
     import sklearn.cluster  # noqa: F401  loads OpenMP
     from threadpoolctl import threadpool_info
 
-    before = [p["num_threads"] for p in threadpool_info()]
+    torch = pytest.importorskip("torch")  # sizes its pool by OpenMP's: both must come back
+    torch.set_num_threads(2)
+    before, torch_before = [p["num_threads"] for p in threadpool_info()], torch.get_num_threads()
     with limit_native_threads():
-        assert {p["num_threads"] for p in threadpool_info()} == {1}
-    assert [p["num_threads"] for p in threadpool_info()] == before
+        assert {p["num_threads"] for p in threadpool_info()} == {1} and torch.get_num_threads() == 1
+    assert [p["num_threads"] for p in threadpool_info()] == before and torch.get_num_threads() == torch_before == 2
 
 
 @needs_ompl
