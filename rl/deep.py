@@ -36,6 +36,7 @@ Stable-Baselines3 and torch (the ``deeprl`` extra) load inside the functions tha
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import dataclasses
 import hashlib
 import inspect
@@ -45,7 +46,7 @@ import os
 import re
 import time
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -482,10 +483,32 @@ def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
 # ------------------------------------------------------------------ training
 
 
-def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]]) -> tuple[Any, Any]:
-    """SB3 callbacks: the return of every training episode as it ends, and a call of
-    ``checkpoints[n]`` with the model when training has reached n steps (between rollouts,
-    where a run of n steps would have stopped)."""
+#: Seconds between two reports of one training's progress (:func:`reporting_progress`).
+PROGRESS_INTERVAL_S = 2.0
+#: Who hears of the progress of a training in this context (:func:`reporting_progress`).
+_PROGRESS: contextvars.ContextVar[Callable[[int, int, bool], None] | None] = contextvars.ContextVar(
+    "swiptopt_training_progress", default=None)
+
+
+@contextlib.contextmanager
+def reporting_progress(report: Callable[[int, int, bool], None] | None) -> Iterator[None]:
+    """Within the block, every :func:`train_deep` tells ``report(steps, total, finished)``
+    how far it has trained: when it starts, between rollouts at most every
+    :data:`PROGRESS_INTERVAL_S` seconds, and when it ends (``finished``). Reporting reads
+    the step count and changes nothing in the training (the same model comes out, bit for
+    bit; a test compares them). ``None`` reports nothing."""
+    token = _PROGRESS.set(report)
+    try:
+        yield
+    finally:
+        _PROGRESS.reset(token)
+
+
+def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> list[Any]:
+    """SB3 callbacks: the return of every training episode as it ends (the first), a call
+    of ``checkpoints[n]`` with the model when training has reached n steps (between
+    rollouts, where a run of n steps would have stopped), and the reports of
+    :func:`reporting_progress` if a report is set."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EpisodeLog(BaseCallback):
@@ -520,7 +543,33 @@ def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]]) -> tuple[Any, A
             if saver is not None:
                 saver(self.model)
 
-    return EpisodeLog(), Checkpoints()
+    report = _PROGRESS.get()
+    return [EpisodeLog(), Checkpoints(), *([_progress_callback(report, total)] if report is not None else [])]
+
+
+def _progress_callback(report: Callable[[int, int, bool], None], total: int) -> Any:
+    """The SB3 callback that tells ``report`` how far a training of ``total`` steps has got
+    (:func:`reporting_progress`)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Progress(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.last = -math.inf
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_start(self) -> None:
+            now = time.monotonic()
+            if now - self.last >= PROGRESS_INTERVAL_S:
+                self.last = now
+                report(int(self.model.num_timesteps), total, False)
+
+        def _on_training_end(self) -> None:
+            report(int(self.model.num_timesteps), total, True)
+
+    return Progress()
 
 
 def _make_one(config: DeepConfig, scenario: Scenario) -> Any:
@@ -663,8 +712,9 @@ def train_deep(
     continuous world's box; the other pairings are refused in one line. On a Gymnasium
     environment: that environment as it is (any with a Box observation). ``hyperparams`` are
     SB3 constructor arguments, ``policy_kwargs`` SB3's. ``checkpoints`` maps step counts to
-    functions called with the model when training reaches them (between rollouts). The same
-    arguments give the same model, bit for bit (see the module docstring).
+    functions called with the model when training reaches them (between rollouts). Inside
+    :func:`reporting_progress` it reports how far it has trained. The same arguments give
+    the same model, bit for bit (see the module docstring).
     """
     config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world,
                         n_envs, env_id, env_kwargs or {})
@@ -673,10 +723,11 @@ def train_deep(
     env, scenario = _training_env(scenario_or_env, config)
     model = _new_model(config, env, scenario)
     _silence(model)
-    log, saver = _callbacks(checkpoints or {})
+    callbacks = _callbacks(checkpoints or {}, config.timesteps)
+    log = callbacks[0]
     start, cpu = time.perf_counter(), time.process_time()
     try:
-        model.learn(total_timesteps=config.timesteps, callback=[log, saver], progress_bar=False)
+        model.learn(total_timesteps=config.timesteps, callback=callbacks, progress_bar=False)
     except (ValueError, RuntimeError, UnboundLocalError) as exc:  # settings SB3 accepted but cannot train with
         raise ConfigError(f"{config.algorithm} failed to train with its settings: {type(exc).__name__}: {_short(exc)}",
                           "hyperparams") from None

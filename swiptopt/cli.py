@@ -173,21 +173,86 @@ def _pretrained(retrain: bool) -> tuple[str, ...]:
     return () if retrain or not PRETRAINED_DIR.is_dir() else (str(PRETRAINED_DIR),)
 
 
+#: Seconds between two status lines of a run whose stderr is not a terminal (a log file, CI).
+STATUS_INTERVAL_S = 60.0
+
+
+def _training_label(task) -> str:  # type: ignore[no-untyped-def]
+    """A training under way, as its status row names it."""
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
+
+    where = "across layouts" if task.training_layouts is not None else f"layout {task.scenario.get('layout_seed')}"
+    return f"  training {task.algorithm} (seed {task.seed % SEEDS_PER_LAYOUT}, {where})"
+
+
+@contextlib.contextmanager
+def _run_status(console, name: str):  # type: ignore[no-untyped-def]
+    """How far a run of the experiment ``name`` has got, on ``console`` (stderr), as
+    ``(on_progress, on_training)`` for :func:`~swiptopt.benchmark.runner.execute`: in a
+    terminal, rich's bars (the tasks, and one per deep-RL training under way, with its
+    steps and the time it has left); elsewhere a plain line at most every
+    :data:`STATUS_INTERVAL_S` seconds, and one at the end."""
+    import time
+
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    tasks = {"done": 0, "todo": 0}
+    trainings: dict[str, tuple[str, int, int]] = {}  # key -> label, steps, total
+    start, last = time.monotonic(), [-float("inf")]
+
+    def line(force: bool = False) -> None:
+        now = time.monotonic()
+        if console.is_terminal or (not force and now - last[0] < STATUS_INTERVAL_S):
+            return
+        last[0] = now
+        elapsed = int(now - start)
+        parts = [f"{name}: {tasks['done']}/{tasks['todo']} tasks, "
+                 f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"]
+        parts += [f"{label.strip()}: {steps:,}/{total:,} steps" for label, steps, total in trainings.values()]
+        console.print("; ".join(parts), markup=False, highlight=False, soft_wrap=True)
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
+                  disable=not console.is_terminal) as progress:
+        bar = progress.add_task(f"[bold]{name}[/]", total=None)
+        rows: dict[str, object] = {}
+
+        def on_progress(done: int, todo: int) -> None:
+            tasks.update(done=done, todo=todo)
+            progress.update(bar, completed=done, total=todo)
+            line(force=done in (0, todo))
+
+        def on_training(task, steps: int, total: int, finished: bool) -> None:  # type: ignore[no-untyped-def]
+            row = rows.pop(task.key, None) if finished else rows.get(task.key)
+            if finished:
+                trainings.pop(task.key, None)
+                if row is not None:
+                    progress.remove_task(row)  # type: ignore[arg-type]
+                return
+            label = _training_label(task)
+            trainings[task.key] = (label, steps, total)
+            if row is None:
+                rows[task.key] = progress.add_task(label, total=total, completed=steps)
+            else:
+                progress.update(row, completed=steps)  # type: ignore[arg-type]
+            line()
+
+        yield on_progress, on_training
+
+
 def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
                     caption=False, retrain=False) -> None:
     """Run the experiments one after the other into one store, print each one's tables as
     it finishes (``caption``: each under its name and world, also in
     the text formats), and write them all to ``output``."""
     from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TaskID,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
 
     from swiptopt.benchmark import tables
     from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
@@ -204,17 +269,9 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
         for experiment in experiments:  # the models directory, for every experiment, before any runs
             check_models_for(experiment, store, _pretrained(retrain))
         for experiment in experiments:
-            with Progress(
-                TextColumn(f"[bold]{experiment.name}[/]"), BarColumn(), MofNCompleteColumn(),
-                TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
-            ) as progress:
-                bar = progress.add_task(experiment.name, total=None)
-
-                def update(done: int, todo: int, progress: Progress = progress, bar: TaskID = bar) -> None:
-                    progress.update(bar, completed=done, total=todo)
-
-                report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=update,
-                                 pretrained=_pretrained(retrain), client=client)
+            with _run_status(console, experiment.name) as (on_progress, on_training):
+                report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=on_progress,
+                                 on_training=on_training, pretrained=_pretrained(retrain), client=client)
             failed = f", {report.failed} failed" if report.failed else ""
             console.print(
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "

@@ -281,9 +281,36 @@ def run_outcome(task: dict[str, Any]) -> dict[str, Any]:
         return _failure(task, one_line(exc), traceback.format_exc())
 
 
+#: Where a local worker sends the progress of its tasks' training (set by the pool's
+#: initializer when the parent listens; see :func:`_local`).
+_REPORTS: Any = None
+
+
 def run_batch(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Run tasks one after the other (a unit of work sent to a worker)."""
-    return [run_outcome(t) for t in tasks]
+    """Run tasks one after the other (a unit of work sent to a worker); a worker whose
+    parent listens reports how far each task's training has got."""
+    if _REPORTS is None:
+        return [run_outcome(t) for t in tasks]
+    from rl.deep import reporting_progress
+
+    outcomes = []
+    for t in tasks:
+        with reporting_progress(_reporter(t)):
+            outcomes.append(run_outcome(t))
+    return outcomes
+
+
+def _reporter(task: dict[str, Any]) -> Callable[[int, int, bool], None] | None:
+    """What sends a task's training progress to the parent, or None if it does not listen."""
+    reports = _REPORTS
+    if reports is None:
+        return None
+    key = Task(**_split(task)[0]).key
+
+    def report(steps: int, total: int, finished: bool) -> None:
+        reports.put((key, steps, total, finished))
+
+    return report
 
 
 def run_batch_isolated(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -368,9 +395,35 @@ def _check_scheduler(scheduler: str, limit: int) -> None:
         raise ConfigError(f"scheduler = {scheduler!r} needs a host and a port in [1, 65535]: {usage}", "scheduler")
 
 
-def _start_pool_worker(parent_pid: int, modules: tuple[str, ...]) -> None:
+def _start_pool_worker(parent_pid: int, modules: tuple[str, ...], reports: Any = None) -> None:
+    global _REPORTS
     die_with_parent(parent_pid)
     prepare_worker(modules)
+    if reports is not None:
+        reports.cancel_join_thread()  # a report not yet sent never holds up the worker's exit
+    _REPORTS = reports
+
+
+#: Seconds the parent waits for a batch before it passes on the training reports it got.
+REPORT_POLL_S = 1.0
+#: What the parent is told of a training: the task's key, its steps so far, its total, and
+#: whether it has finished.
+TrainingReport = Callable[[str, int, int, bool], None]
+
+
+def _drain(reports: Any, on_training: TrainingReport | None) -> None:
+    """Pass on every training report waiting in ``reports`` (a multiprocessing queue: a
+    worker's ``put`` never blocks, whether or not the parent is reading)."""
+    import queue
+
+    if reports is None or on_training is None:
+        return
+    while True:
+        try:
+            report = reports.get_nowait()
+        except queue.Empty:
+            return
+        on_training(*report)
 
 
 def _isolated(tasks: list[dict[str, Any]], workers: int) -> Iterator[list[dict[str, Any]]]:
@@ -383,9 +436,11 @@ def _isolated(tasks: list[dict[str, Any]], workers: int) -> Iterator[list[dict[s
             yield [future.result()]
 
 
-def _local(batches: list[list[dict[str, Any]]], workers: int,
-           modules: tuple[str, ...]) -> Iterator[list[dict[str, Any]]]:
-    """Batches on ``workers`` local processes (one too: a native crash must not end the run)."""
+def _local(batches: list[list[dict[str, Any]]], workers: int, modules: tuple[str, ...],
+           on_training: TrainingReport | None = None) -> Iterator[list[dict[str, Any]]]:
+    """Batches on ``workers`` local processes (one too: a native crash must not end the run);
+    with ``on_training``, the workers' training reports are passed to it as they come (at
+    least every :data:`REPORT_POLL_S` seconds)."""
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
@@ -395,8 +450,10 @@ def _local(batches: list[list[dict[str, Any]]], workers: int,
     context = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     queue = deque(batches)
     while queue:
+        # a queue per pool: a worker killed while writing to it takes only its own pool's queue down
+        reports = context.Queue() if on_training is not None else None
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_pool_worker,
-                                   initargs=(os.getpid(), modules))
+                                   initargs=(os.getpid(), modules, reports))
         running: dict[Any, list[dict[str, Any]]] = {}
         lost: list[list[dict[str, Any]]] = []
         try:
@@ -411,7 +468,9 @@ def _local(batches: list[list[dict[str, Any]]], workers: int,
                 if not running:  # the pool broke before it took any batch: the next runs alone
                     lost.append(queue.popleft())
                     break
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                done, _ = wait(running, timeout=None if reports is None else REPORT_POLL_S,
+                               return_when=FIRST_COMPLETED)
+                _drain(reports, on_training)
                 for future in done:
                     batch = running.pop(future)
                     if isinstance(future.exception(), BrokenProcessPool):
@@ -420,6 +479,7 @@ def _local(batches: list[list[dict[str, Any]]], workers: int,
                         yield future.result()
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+            _drain(reports, on_training)  # what the workers sent before they stopped
         # a worker died: keep what finished meanwhile, then find the culprit task by running
         # each task it may have held in a fresh process
         for future, batch in running.items():
@@ -653,6 +713,7 @@ def execute(
     on_progress: Callable[[int, int], None] | None = None,
     pretrained: tuple[str, ...] | list[str] = (),
     client: Any = None,
+    on_training: Callable[[Task, int, int, bool], None] | None = None,
 ) -> RunReport:
     """Run the experiment's tasks that the store lacks; commit each as it finishes.
 
@@ -662,7 +723,10 @@ def execute(
     before the store records the run, and closed at the end). Everything that could stop
     the run (the options, the models directory, the scheduler) is checked before the store
     records it.
-    ``on_progress(done, todo)`` is called after every committed task. A task that fails is
+    ``on_progress(done, todo)`` is called after every committed task, and
+    ``on_training(task, steps, total, finished)`` as a task's deep-RL training goes on (its
+    steps so far of its total; every few seconds, and once ``finished``; local workers only:
+    a Dask worker reports no training). A task that fails is
     recorded in the store (not as a result) and in the report; the others go on. Trained
     models go to ``models/`` beside the store (:func:`models_dir_for`); a model is reused
     from there, or from the ``pretrained`` directories, when the directory's manifest
@@ -684,7 +748,8 @@ def execute(
             on_progress(0, len(todo))
         if not todo:
             return RunReport(total, total, 0, time.perf_counter() - start)
-        failures = _run_todo(todo, store, workers, scheduler, client, models_dir, tuple(pretrained), on_progress)
+        failures = _run_todo(todo, store, workers, scheduler, client, models_dir, tuple(pretrained), on_progress,
+                             on_training)
     return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start, tuple(failures))
 
 
@@ -707,9 +772,16 @@ def check_models_for(experiment: Experiment, store: ResultStore, pretrained: tup
 
 def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str | None, client: Any,
               models_dir: str, pretrained: tuple[str, ...],
-              on_progress: Callable[[int, int], None] | None) -> list[Failure]:
+              on_progress: Callable[[int, int], None] | None,
+              on_training: Callable[[Task, int, int, bool], None] | None = None) -> list[Failure]:
     """Run the tasks (locally, or on the Dask cluster of ``client``), committing each
     outcome to the store as it comes; returns the failures."""
+    by_key = {t.key: t for t in todo}
+
+    def training(key: str, steps: int, total: int, finished: bool) -> None:
+        if on_training is not None and key in by_key:
+            on_training(by_key[key], steps, total, finished)
+
     todo_dicts = [t.to_dict() for t in todo]
     stages = _batches(todo, workers if scheduler is None else 4, models_dir, pretrained)
     modules = _modules_for(todo_dicts)
@@ -722,7 +794,8 @@ def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str
         import_modules(modules)
         limit = limit_native_threads()
         warm_up(todo_dicts)
-        stream = _staged(stages, lambda batches: _local(batches, workers, modules))
+        stream = _staged(stages, lambda batches: _local(batches, workers, modules,
+                                                        training if on_training is not None else None))
     failures: list[Failure] = []
     done = 0
     try:

@@ -6,7 +6,7 @@ import pytest
 
 import swiptopt
 from rl import DeepConfig, deep_config_hash, load_deep, save_deep, train_deep, train_or_load_deep
-from rl.deep import file_sha256, model_path, read_manifest, read_weights
+from rl.deep import file_sha256, model_path, read_manifest, read_weights, reporting_progress
 from swiptopt.env import AuvSwiptEnv
 
 pytest.importorskip("stable_baselines3")
@@ -204,6 +204,23 @@ def test_a_checkpoint_is_the_model_of_the_shorter_run(tmp_path):
     assert short_dqn.loaded
     for key, value in _parameters(train_deep("dqn", TINY, 256, 0, **dqn).model).items():
         np.testing.assert_array_equal(value, _parameters(short_dqn.model)[key])
+
+
+def test_a_training_reports_its_progress_and_trains_the_same_model(monkeypatch):
+    import rl.deep
+
+    monkeypatch.setattr(rl.deep, "PROGRESS_INTERVAL_S", 0.0)  # a report at every rollout's start
+    reports = []
+    with reporting_progress(lambda *report: reports.append(report)):
+        watched = train_deep("ppo", TINY, 384, 2, hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=2)
+    # rollouts of 2 x 64 steps: reported as each starts, then once finished
+    assert reports == [(0, 384, False), (128, 384, False), (256, 384, False), (384, 384, True)]
+    quiet = train_deep("ppo", TINY, 384, 2, hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=2)
+    for key, value in _parameters(quiet.model).items():
+        np.testing.assert_array_equal(value, _parameters(watched.model)[key])
+    reports.clear()
+    train_deep("ppo", TINY, 128, 2, hyperparams=SETTINGS["ppo"], policy_kwargs=NET, n_envs=2)
+    assert reports == []  # outside the block nothing is reported
 
 
 def test_copies_of_the_environment_train_reproducibly():

@@ -4,6 +4,7 @@ lineage, the curves' table and figure, and the built-in group in --quick."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -121,9 +122,14 @@ def test_a_checkpoint_evaluates_like_the_run_of_its_length(tmp_path):
     from a run of that length alone."""
     both = curve(budgets={"ppo": [64, 128]}, layouts=1, algorithms={"ppo": {**TINY_PPO, "training_seeds": 1}})
     alone = curve(budgets={"ppo": [64]}, layouts=1, algorithms={"ppo": {**TINY_PPO, "training_seeds": 1}})
+    reports = []
     with ResultStore(tmp_path / "a" / "s.sqlite") as store:
-        execute(both, store, workers=1)
+        execute(both, store, workers=1, on_training=lambda task, *report: reports.append((task.key, *report)))
         a = store.get({t.key for t in both.tasks() if t.budget == 64})
+    # the one training (the lineage's, at 128 steps) told the parent how far it had got
+    (trainer,) = [t.key for t in both.tasks() if t.budget == 128]
+    assert {r[0] for r in reports} == {trainer} and reports[0][1:] == (0, 128, False)
+    assert reports[-1][1:] == (128, 128, True) and [r[1] for r in reports] == sorted(r[1] for r in reports)
     with ResultStore(tmp_path / "b" / "s.sqlite") as store:
         execute(alone, store, workers=1)
         b = store.get({t.key for t in alone.tasks()})
@@ -152,13 +158,20 @@ def test_the_built_in_curves_cover_both_worlds_and_both_trainings():
                                               for e in experiments}
 
 
-def test_the_grid_curves_run_in_quick(tmp_path):
+def test_the_grid_curves_run_in_quick(tmp_path, monkeypatch, capsys):
+    import swiptopt.cli
     from swiptopt.cli import main
 
+    monkeypatch.setattr(swiptopt.cli, "STATUS_INTERVAL_S", 0.0)  # every report is a line (stderr is no terminal)
     out = tmp_path / "curves.md"
     code = main(["run", "learning-curve", "--quick", "--store", str(tmp_path / "s.sqlite"), "--format", "markdown",
                  "--output", str(out), "--workers", "2"])
     assert code == 0
+    status = capsys.readouterr().err.splitlines()
+    # plain status lines: the tasks done, and each training under way with its steps
+    assert status[0].startswith("learning-curve: 0/") and " tasks, 0:00:0" in status[0]
+    assert any(re.search(r"training dqn \(seed \d, layout \d+\): [\d,]+/[\d,]+ steps", line) for line in status)
+    assert any(re.search(r"training sac \(seed \d, across layouts\): [\d,]+/[\d,]+ steps", line) for line in status)
     text = out.read_text()
     assert "learning curves" in text and "stop-choosing PPO @" in text and "SAC @" in text
     with ResultStore(tmp_path / "s.sqlite", readonly=True) as store:
