@@ -504,11 +504,11 @@ def reporting_progress(report: Callable[[int, int, bool], None] | None) -> Itera
         _PROGRESS.reset(token)
 
 
-def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> list[Any]:
-    """SB3 callbacks: the return of every training episode as it ends (the first), a call
-    of ``checkpoints[n]`` with the model when training has reached n steps (between
-    rollouts, where a run of n steps would have stopped), and the reports of
-    :func:`reporting_progress` if a report is set."""
+def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> tuple[Any, list[Any]]:
+    """SB3 callbacks: the one that collects the return of every training episode as it
+    ends, and all of them: it, a call of ``checkpoints[n]`` with the model when training
+    has reached n steps (between rollouts, where a run of n steps would have stopped), and
+    the reports of :func:`reporting_progress` if a report is set."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EpisodeLog(BaseCallback):
@@ -543,8 +543,8 @@ def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> 
             if saver is not None:
                 saver(self.model)
 
-    report = _PROGRESS.get()
-    return [EpisodeLog(), Checkpoints(), *([_progress_callback(report, total)] if report is not None else [])]
+    log, report = EpisodeLog(), _PROGRESS.get()
+    return log, [log, Checkpoints(), *([_progress_callback(report, total)] if report is not None else [])]
 
 
 def _progress_callback(report: Callable[[int, int, bool], None], total: int) -> Any:
@@ -723,8 +723,7 @@ def train_deep(
     env, scenario = _training_env(scenario_or_env, config)
     model = _new_model(config, env, scenario)
     _silence(model)
-    callbacks = _callbacks(checkpoints or {}, config.timesteps)
-    log = callbacks[0]
+    log, callbacks = _callbacks(checkpoints or {}, config.timesteps)
     start, cpu = time.perf_counter(), time.process_time()
     try:
         model.learn(total_timesteps=config.timesteps, callback=callbacks, progress_bar=False)

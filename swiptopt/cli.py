@@ -198,51 +198,47 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
         BarColumn,
         MofNCompleteColumn,
         Progress,
+        TaskID,
         TextColumn,
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
 
-    tasks = {"done": 0, "todo": 0}
-    trainings: dict[str, tuple[str, int, int]] = {}  # key -> label, steps, total
     start, last = time.monotonic(), [-float("inf")]
 
-    def line(force: bool = False) -> None:
+    def line(progress: Progress, force: bool = False) -> None:
+        """The plain status line, from the bars' own counts (the first bar is the tasks')."""
         now = time.monotonic()
         if console.is_terminal or (not force and now - last[0] < STATUS_INTERVAL_S):
             return
         last[0] = now
         elapsed = int(now - start)
-        parts = [f"{name}: {tasks['done']}/{tasks['todo']} tasks, "
+        tasks, *trainings = progress.tasks
+        parts = [f"{name}: {int(tasks.completed)}/{int(tasks.total or 0)} tasks, "
                  f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"]
-        parts += [f"{label.strip()}: {steps:,}/{total:,} steps" for label, steps, total in trainings.values()]
+        parts += [f"{t.description.strip()}: {int(t.completed):,}/{int(t.total or 0):,} steps" for t in trainings]
         console.print("; ".join(parts), markup=False, highlight=False, soft_wrap=True)
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
                   disable=not console.is_terminal) as progress:
         bar = progress.add_task(f"[bold]{name}[/]", total=None)
-        rows: dict[str, object] = {}
+        rows: dict[str, TaskID] = {}  # a training's task key -> its bar
 
         def on_progress(done: int, todo: int) -> None:
-            tasks.update(done=done, todo=todo)
             progress.update(bar, completed=done, total=todo)
-            line(force=done in (0, todo))
+            line(progress, force=done in (0, todo))
 
         def on_training(task, steps: int, total: int, finished: bool) -> None:  # type: ignore[no-untyped-def]
-            row = rows.pop(task.key, None) if finished else rows.get(task.key)
             if finished:
-                trainings.pop(task.key, None)
-                if row is not None:
-                    progress.remove_task(row)  # type: ignore[arg-type]
+                if task.key in rows:
+                    progress.remove_task(rows.pop(task.key))
                 return
-            label = _training_label(task)
-            trainings[task.key] = (label, steps, total)
-            if row is None:
-                rows[task.key] = progress.add_task(label, total=total, completed=steps)
+            if task.key not in rows:
+                rows[task.key] = progress.add_task(_training_label(task), total=total, completed=steps)
             else:
-                progress.update(row, completed=steps)  # type: ignore[arg-type]
-            line()
+                progress.update(rows[task.key], completed=steps)
+            line(progress)
 
         yield on_progress, on_training
 
