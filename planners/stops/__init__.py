@@ -37,9 +37,12 @@ from swiptopt.scenario import Scenario
 #: The registered ids of the stop-choice environments, by world (``import planners``
 #: registers them: ``gymnasium.make(STOP_ENV_IDS["grid"], scenario=..., layout_seeds=...)``).
 STOP_ENV_IDS = {"grid": "swiptopt/AuvSwiptStops-v0", "continuous": "swiptopt/AuvSwiptContinuousStops-v0"}
-for _world, _cls in (("grid", "StopChoiceEnv"), ("continuous", "ContinuousStopChoiceEnv")):
-    if STOP_ENV_IDS[_world] not in registry:
-        register(id=STOP_ENV_IDS[_world], entry_point=f"planners.stops:{_cls}")
+#: The fleet's (:class:`FleetStopChoiceEnv`; the scenario's ``n_auvs`` sets the fleet).
+FLEET_STOP_ENV_ID = "swiptopt/AuvSwiptFleetStops-v0"
+for _id, _cls in ((STOP_ENV_IDS["grid"], "StopChoiceEnv"), (STOP_ENV_IDS["continuous"], "ContinuousStopChoiceEnv"),
+                  (FLEET_STOP_ENV_ID, "FleetStopChoiceEnv")):
+    if _id not in registry:
+        register(id=_id, entry_point=f"planners.stops:{_cls}")
 
 
 def make_stop_env(world: str, scenario: Scenario | str, *, layout_seeds: Sequence[int] | None = None,
@@ -65,6 +68,7 @@ __all__ = [
     "CANDIDATE_FEATURES",
     "DWELLS",
     "MASKED_ACTIONS",
+    "FLEET_STOP_ENV_ID",
     "STOP_ENV_IDS",
     "ContinuousStopChoiceEnv",
     "ContinuousStopSettings",

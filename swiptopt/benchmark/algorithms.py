@@ -420,14 +420,15 @@ def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
             if k not in _NOT_SB3 and v is not None}
 
 
-def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int,
-              context: BuildContext) -> tuple[Any, int, dict[str, Any]]:
+def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int, context: BuildContext,
+              fleet: bool = False) -> tuple[Any, int, dict[str, Any]]:
     """The training run behind a deep-RL task: the scenario it trains on, its seed and the
     keyword arguments of :func:`rl.deep.train_deep` (the training layouts, the world, the
-    SB3 arguments, the copies, the environment)."""
+    SB3 arguments, the copies, the environment; with ``fleet``, the fleet's stop-choice
+    environment on the task's scenario, its ``n_auvs`` included)."""
     scenario = context.scenario
     layouts = None
-    if settings[TRAINING] == ACROSS_LAYOUTS:
+    if settings.get(TRAINING) == ACROSS_LAYOUTS:
         if not context.training_layouts:
             raise ConfigError("training = 'across_layouts' needs the experiment's training_layouts",
                               "training_layouts")
@@ -436,9 +437,9 @@ def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int,
         seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
     env_id, env_kwargs = None, {}
     if stops:
-        from planners.stops import STOP_ENV_IDS
+        from planners.stops import FLEET_STOP_ENV_ID, STOP_ENV_IDS
 
-        env_id = STOP_ENV_IDS[context.world]
+        env_id = FLEET_STOP_ENV_ID if fleet else STOP_ENV_IDS[context.world]
         env_kwargs = {key: settings[key] for key in _STOP_ENV_SETTINGS[context.world]}
     arguments = dict(hyperparams=deep_hyperparams(settings), policy_kwargs={"net_arch": list(settings["net_arch"])},
                      layout_seeds=layouts, world=context.world, n_envs=settings["n_envs"], env_id=env_id,
@@ -456,11 +457,12 @@ def _deep_config(sb3: str, settings: dict[str, Any], seed: int, arguments: dict[
                       arguments["env_kwargs"])
 
 
-def _deep_model(sb3: str, stops: bool = False) -> Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]]:
+def _deep_model(sb3: str, stops: bool = False,
+                fleet: bool = False) -> Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]]:
     """An algorithm's ``trained_model``: the configuration and scenario of a task's model."""
 
     def model(settings: dict[str, Any], seed: int, context: BuildContext) -> tuple[Any, Any]:
-        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context)
+        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context, fleet)
         return _deep_config(sb3, settings, seed, arguments), scenario
 
     return model
@@ -494,15 +496,18 @@ def _writable(directory: str) -> bool:
     return os.access(path, os.W_OK | os.X_OK)
 
 
-def _deep(sb3: str, stops: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
+def _deep(sb3: str, stops: bool = False,
+          fleet: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path); with
     ``stops``, on the world's stop-choice environment (:mod:`planners.stops`), the trained
-    model then played on the kernel env by :class:`planners.stops.StopChoicePolicy`."""
+    model then played on the kernel env by :class:`planners.stops.StopChoicePolicy`; with
+    ``fleet`` too, on the fleet's (:class:`planners.stops.FleetStopChoiceEnv`), played on the
+    fleet env by :class:`planners.stops.FleetStopChoicePolicy`."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
         from rl.deep import checkpoint_exact, train_deep, train_or_load_deep
 
-        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context)
+        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context, fleet)
         if context.models_dir is None:
             result = train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
         elif not _writable(context.models_dir):
@@ -515,7 +520,13 @@ def _deep(sb3: str, stops: bool = False) -> Callable[[Any, dict[str, Any], int, 
                                         checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
         if not stops:
             return result
-        from planners.stops import StopChoicePolicy, make_stop_env
+        from planners.stops import FleetStopChoiceEnv, FleetStopChoicePolicy, StopChoicePolicy, make_stop_env
+
+        if fleet:
+            policy = FleetStopChoicePolicy.from_env(result.model, FleetStopChoiceEnv(context.scenario,
+                                                                                     **arguments["env_kwargs"]))
+            policy.result = result  # what _deep_record reads
+            return policy
 
         return _StopPolicy(result, StopChoicePolicy.from_env(result.model, make_stop_env(
             context.world, context.scenario, **arguments["env_kwargs"])))
@@ -715,26 +726,6 @@ _FLEET_STOP_PPO = {
 }
 
 
-def _fleet_stop_ppo(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-    """MaskablePPO on the fleet's stop-choosing environment (:class:`planners.stops.FleetStopChoiceEnv`:
-    one policy makes every AUV's decisions), trained in the task on the task's layout with the
-    task's seed on ``n_envs`` copies, then played on the fleet env."""
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    from planners.stops import FleetStopChoiceEnv, FleetStopChoicePolicy
-    from rl.deep import train_deep
-
-    def make() -> Any:
-        return FleetStopChoiceEnv(context.scenario, candidates=settings["candidates"])
-
-    venv = DummyVecEnv([make for _ in range(settings["n_envs"])])
-    result = train_deep("maskable_ppo", venv, settings["timesteps"], seed, hyperparams=deep_hyperparams(settings),
-                        policy_kwargs={"net_arch": list(settings["net_arch"])})
-    policy = FleetStopChoicePolicy.from_env(result.model, venv.envs[0])
-    policy.train_seconds = result.train_seconds
-    return policy
-
-
 def _fleet_routing_record(policy: Any, env: Any) -> dict[str, Any]:
     plan = getattr(policy, "plan_", None)
     if plan is None:
@@ -754,8 +745,9 @@ def _fleet_algorithms() -> tuple[Algorithm, ...]:
                   fleet=True),
         Algorithm("shared_ppo", "parameter-shared PPO", "rl", _SHARED_PPO, _shared_ppo, _shared_ppo_record,
                   observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True),
-        Algorithm("fleet_stop_ppo", "stop-choosing PPO (fleet)", "rl", _FLEET_STOP_PPO, _fleet_stop_ppo,
-                  _shared_ppo_record, modules=(*_DEEP_MODULES, "sb3_contrib"), trains_model=True, fleet=True),
+        Algorithm("fleet_stop_ppo", "stop-choosing PPO (fleet)", "rl", _FLEET_STOP_PPO,
+                  _deep("maskable_ppo", stops=True, fleet=True), _deep_record, modules=(*_DEEP_MODULES, "sb3_contrib"),
+                  trains_model=True, fleet=True, trained_model=_deep_model("maskable_ppo", True, True)),
         Algorithm("fleet_milp", "MILP (fleet)", "planner", _MILP, _milp, _milp_record, fleet=True),
         Algorithm("fleet_q_learning", "independent Q-learning", "rl", {**_FLEET_TRAINING, **_TABULAR},
                   _fleet_agents("q_learning"), observation="tabular", fleet=True),

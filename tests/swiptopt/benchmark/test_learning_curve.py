@@ -204,6 +204,27 @@ def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
+def test_the_fleet_curve_file_extends_the_fleet_suite_at_four_auvs():
+    """benchmarks/learning-curve-fleet-stop-ppo.toml (the curve docs/fleet.md quotes) runs,
+    at the suite's budget, the very tasks of the fleet suite's stop-choosing PPO and routing
+    with four AUVs (so its first point is the suite's row), and beyond it only longer
+    trainings of the same runs."""
+    from pathlib import Path
+
+    from swiptopt.benchmark.experiment import fleet_suite
+
+    path = Path(__file__).parents[3] / "benchmarks" / "learning-curve-fleet-stop-ppo.toml"
+    curve = {t.key: t for t in Experiment.from_toml(path).tasks()}
+    suite = {t.key: t for t in fleet_suite().tasks()}
+    shared = {k for k in curve if k in suite}
+    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {("fleet_stop_ppo", 4),
+                                                                                 ("fleet_routing", 4)}
+    assert len(shared) == 8  # the suite's 4 layouts, each algorithm once
+    longer = [t for k, t in curve.items() if k not in shared]
+    assert sorted({t.settings["timesteps"] for t in longer}) == [131_072, 262_144, 524_288]
+    assert len(longer) == 12 and {t.algorithm for t in longer} == {"fleet_stop_ppo"}
+
+
 _PPO_DQN_ROWS = {
     "PPO": "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)",
     "DQN": "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)",
