@@ -238,6 +238,8 @@ _HARBOUR_ACROSS_PPO_ROWS = {
     "PPO": "4,194,304: 8.29 ± 0.87; 8,388,608: 8.78 ± 1.02 | yes | 4,194,304 | 0.24× [0.21–0.26] 0/8 (OMPL tour)"}
 _HARBOUR_ACROSS_SAC_ROWS = {
     "SAC": "1,048,576: 8.78 ± 0.87; 2,097,152: 10.56 ± 1.18 | no | 2,097,152 | 0.29× [0.26–0.31] 0/8 (OMPL tour)"}
+_FLEET_STOP_ROWS = {"stop-choosing PPO (fleet)": "262,144: 72.53 ± 6.56; 524,288: 71.38 ± 6.56 | yes | 131,072 | "
+                                                 "0.86× [0.84–0.89] 0/4 (k-means + vehicle routing)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -248,11 +250,12 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS),
                                                 ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS),
                                                 ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS),
-                                                ("learning-curve-harbour-across-sac", _HARBOUR_ACROSS_SAC_ROWS)])
+                                                ("learning-curve-harbour-across-sac", _HARBOUR_ACROSS_SAC_ROWS),
+                                                ("learning-curve-fleet-stop-ppo", _FLEET_STOP_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
-    """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md and the
-    README quote: its table, printed from the stored data alone, carries their numbers (a
-    page that misquotes the run fails here)."""
+    """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
+    fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
+    alone, carries their numbers (a page that misquotes the run fails here)."""
     from pathlib import Path
 
     root = Path(__file__).parents[3]
@@ -260,7 +263,7 @@ def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected
     assert main(["table", str(root / "benchmarks" / "stores" / f"{name}.sqlite"),
                  "--experiment", name, "--format", "markdown", "--output", str(out)]) == 0
     rows = {line.split(" | ")[1]: line for line in out.read_text().splitlines() if line.startswith(f"| {name} |")}
-    docs = (root / "docs" / "results.md").read_text()
+    docs = (root / "docs" / ("fleet.md" if "fleet" in name else "results.md")).read_text()
     assert set(rows) == set(expected)
     for algorithm, fragment in expected.items():
         assert rows[algorithm] in docs
