@@ -735,14 +735,14 @@ def _doublings_more(budgets: tuple[int, ...] | list[int], n: int = 1) -> list[in
 #: every layout), DQN's with one more doubling (its curve still rose at 2,097,152); in the
 #: harbour, PPO's doubled and two doublings more (its curve rose longest: 8.29 at 4,194,304
 #: steps, flat at 8,388,608 with 8.78, docs/results.md), SAC's the per-layout curve's and
-#: three doublings more (its curve still rose at 524,288, and still rises at 2,097,152; a
-#: SAC step costs many PPO steps: a lineage to 2,097,152 took about 61 CPU-minutes) and the
+#: four doublings more (its curve still rose at 524,288, and still rises at 4,194,304; a
+#: SAC step costs many PPO steps: a lineage to 4,194,304 took about 124 CPU-minutes) and the
 #: stop-choosing agent's from half the per-layout curve's first budget to twice its last.
 ACROSS_BUDGETS = {
     "grid": {"ppo": _doubled(_GRID_CURVE), "dqn": _doublings_more(_doubled(_GRID_CURVE)),
              "stop_ppo": _doubled(_STOP_CURVE)},
     "harbour": {"ppo": _doublings_more(_doubled(_GRID_CURVE), 2),
-                "sac": _doublings_more(_SAC_CURVE, 3),
+                "sac": _doublings_more(_SAC_CURVE, 4),
                 "stop_ppo": [_STOP_CURVE[0] // 2, *_doublings_more(_STOP_CURVE)]},
 }
 COMPARE_DEEP_TIMESTEPS = {name: budgets[-1] for name, budgets in ACROSS_BUDGETS["grid"].items()}

@@ -204,25 +204,29 @@ def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
-def test_the_fleet_curve_file_extends_the_fleet_suite_at_four_auvs():
-    """benchmarks/learning-curve-fleet-stop-ppo.toml (the curve docs/fleet.md quotes) runs,
-    at the suite's budget, the very tasks of the fleet suite's stop-choosing PPO and routing
-    with four AUVs (so its first point is the suite's row), and beyond it only longer
-    trainings of the same runs."""
+@pytest.mark.parametrize(("file", "n_auvs", "longer_budgets"), [
+    ("learning-curve-fleet-stop-ppo.toml", 4, [131_072, 262_144, 524_288]),
+    ("learning-curve-fleet-stop-ppo-two.toml", 2, [131_072, 262_144]),
+])
+def test_a_fleet_curve_file_extends_the_fleet_suite(file, n_auvs, longer_budgets):
+    """The fleet curve files under benchmarks/ (the curves docs/fleet.md quotes) run, at the
+    suite's budget, the very tasks of the fleet suite's stop-choosing PPO and routing with
+    their number of AUVs (so their first point is the suite's row), and beyond it only
+    longer trainings of the same runs."""
     from pathlib import Path
 
     from swiptopt.benchmark.experiment import fleet_suite
 
-    path = Path(__file__).parents[3] / "benchmarks" / "learning-curve-fleet-stop-ppo.toml"
+    path = Path(__file__).parents[3] / "benchmarks" / file
     curve = {t.key: t for t in Experiment.from_toml(path).tasks()}
     suite = {t.key: t for t in fleet_suite().tasks()}
     shared = {k for k in curve if k in suite}
-    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {("fleet_stop_ppo", 4),
-                                                                                 ("fleet_routing", 4)}
+    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {("fleet_stop_ppo", n_auvs),
+                                                                                 ("fleet_routing", n_auvs)}
     assert len(shared) == 8  # the suite's 4 layouts, each algorithm once
     longer = [t for k, t in curve.items() if k not in shared]
-    assert sorted({t.settings["timesteps"] for t in longer}) == [131_072, 262_144, 524_288]
-    assert len(longer) == 12 and {t.algorithm for t in longer} == {"fleet_stop_ppo"}
+    assert sorted({t.settings["timesteps"] for t in longer}) == longer_budgets
+    assert len(longer) == 4 * len(longer_budgets) and {t.algorithm for t in longer} == {"fleet_stop_ppo"}
 
 
 _PPO_DQN_ROWS = {
@@ -237,9 +241,11 @@ _HARBOUR_SAC_ROWS = {
 _HARBOUR_ACROSS_PPO_ROWS = {
     "PPO": "4,194,304: 8.29 ± 0.87; 8,388,608: 8.78 ± 1.02 | yes | 4,194,304 | 0.24× [0.21–0.26] 0/8 (OMPL tour)"}
 _HARBOUR_ACROSS_SAC_ROWS = {
-    "SAC": "1,048,576: 8.78 ± 0.87; 2,097,152: 10.56 ± 1.18 | no | 2,097,152 | 0.29× [0.26–0.31] 0/8 (OMPL tour)"}
+    "SAC": "2,097,152: 10.56 ± 1.18; 4,194,304: 11.84 ± 1.47 | no | 4,194,304 | 0.32× [0.29–0.35] 0/8 (OMPL tour)"}
 _FLEET_STOP_ROWS = {"stop-choosing PPO (fleet)": "262,144: 72.53 ± 6.56; 524,288: 71.38 ± 6.56 | yes | 131,072 | "
                                                  "0.86× [0.84–0.89] 0/4 (k-means + vehicle routing)"}
+_FLEET_TWO_ROWS = {"stop-choosing PPO (fleet)": "131,072: 47.66 ± 1.72; 262,144: 48.06 ± 1.65 | yes | 131,072 | "
+                                                "0.98× [0.90–1.05] 1/4 (k-means + vehicle routing)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -251,7 +257,8 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS),
                                                 ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS),
                                                 ("learning-curve-harbour-across-sac", _HARBOUR_ACROSS_SAC_ROWS),
-                                                ("learning-curve-fleet-stop-ppo", _FLEET_STOP_ROWS)])
+                                                ("learning-curve-fleet-stop-ppo", _FLEET_STOP_ROWS),
+                                                ("learning-curve-fleet-stop-ppo-two", _FLEET_TWO_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
     fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
