@@ -905,6 +905,14 @@ def technologies() -> Experiment:
 FLEET_SCENARIO = {"preset": "paper", "length_m": 200.0, "width_m": 200.0, "n_nodes": 60, "episode_steps": 100}
 FLEET_SIZES = [1, 2, 4]
 _FLEET_LAYOUTS = 4
+#: The fleet suite's learners' budgets (docs/fleet.md): the stop-choosing PPO's decisions at
+#: its learning curves' plateaus on the suite's field (flat from 65,536 with one AUV, 131,072
+#: with two and 262,144 with four: benchmarks/learning-curve-fleet-stop-ppo*.toml);
+#: parameter-shared PPO's AUV steps where its curve with four AUVs has risen from 32.21 to
+#: 43.12 (benchmarks/learning-curve-fleet-shared-ppo.toml). It still rises at 2,097,152
+#: (50.65), which the suite's time cannot afford for every fleet size, so that row is a
+#: lower estimate.
+FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 1_048_576}
 
 
 def fleet_suite() -> Experiment:
@@ -919,7 +927,7 @@ def fleet_suite() -> Experiment:
         "(docs/fleet.md)",
         scenario=FLEET_SCENARIO,
         sweep={"n_auvs": FLEET_SIZES},
-        algorithms={"fleet_routing": {}, "fleet_stop_ppo": {}, "shared_ppo": {},
+        algorithms={"fleet_routing": {}, **{name: {"timesteps": steps} for name, steps in FLEET_TIMESTEPS.items()},
                     "fleet_q_learning": {"train_episodes": 5_000}, "fleet_random": {}},
         layouts=_FLEET_LAYOUTS,
         episodes=10,

@@ -204,29 +204,35 @@ def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
-@pytest.mark.parametrize(("file", "n_auvs", "longer_budgets"), [
-    ("learning-curve-fleet-stop-ppo.toml", 4, [131_072, 262_144, 524_288]),
-    ("learning-curve-fleet-stop-ppo-two.toml", 2, [131_072, 262_144]),
+@pytest.mark.parametrize(("file", "algorithm", "n_auvs"), [
+    ("learning-curve-fleet-stop-ppo.toml", "fleet_stop_ppo", 4),
+    ("learning-curve-fleet-stop-ppo-two.toml", "fleet_stop_ppo", 2),
+    ("learning-curve-fleet-stop-ppo-one.toml", "fleet_stop_ppo", 1),
+    ("learning-curve-fleet-shared-ppo.toml", "shared_ppo", 4),
 ])
-def test_a_fleet_curve_file_extends_the_fleet_suite(file, n_auvs, longer_budgets):
+def test_a_fleet_curve_file_holds_the_fleet_suites_tasks(file, algorithm, n_auvs):
     """The fleet curve files under benchmarks/ (the curves docs/fleet.md quotes) run, at the
-    suite's budget, the very tasks of the fleet suite's stop-choosing PPO and routing with
-    their number of AUVs (so their first point is the suite's row), and beyond it only
-    longer trainings of the same runs."""
+    suite's budget, the very tasks of the fleet suite's learner and routing with their number
+    of AUVs (so one store serves both, and the suite's row is a point of the curve), and at
+    their other budgets only other trainings of the same learner."""
     from pathlib import Path
 
     from swiptopt.benchmark.experiment import fleet_suite
 
     path = Path(__file__).parents[3] / "benchmarks" / file
-    curve = {t.key: t for t in Experiment.from_toml(path).tasks()}
+    experiment = Experiment.from_toml(path)
+    curve = {t.key: t for t in experiment.tasks()}
     suite = {t.key: t for t in fleet_suite().tasks()}
     shared = {k for k in curve if k in suite}
-    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {("fleet_stop_ppo", n_auvs),
+    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {(algorithm, n_auvs),
                                                                                  ("fleet_routing", n_auvs)}
     assert len(shared) == 8  # the suite's 4 layouts, each algorithm once
-    longer = [t for k, t in curve.items() if k not in shared]
-    assert sorted({t.settings["timesteps"] for t in longer}) == longer_budgets
-    assert len(longer) == 4 * len(longer_budgets) and {t.algorithm for t in longer} == {"fleet_stop_ppo"}
+    (suite_budget,) = {suite[k].settings["timesteps"] for k in shared if suite[k].algorithm == algorithm}
+    budgets = experiment.budgets[algorithm]
+    others = [t for k, t in curve.items() if k not in shared]
+    assert {t.algorithm for t in others} == {algorithm}
+    assert sorted({t.settings["timesteps"] for t in others}) == sorted(set(budgets) - {suite_budget})
+    assert len(others) == 4 * (len(budgets) - 1)
 
 
 _PPO_DQN_ROWS = {
@@ -246,6 +252,10 @@ _FLEET_STOP_ROWS = {"stop-choosing PPO (fleet)": "262,144: 72.53 ± 6.56; 524,28
                                                  "0.86× [0.84–0.89] 0/4 (k-means + vehicle routing)"}
 _FLEET_TWO_ROWS = {"stop-choosing PPO (fleet)": "131,072: 47.66 ± 1.72; 262,144: 48.06 ± 1.65 | yes | 131,072 | "
                                                 "0.98× [0.90–1.05] 1/4 (k-means + vehicle routing)"}
+_FLEET_ONE_ROWS = {"stop-choosing PPO (fleet)": "131,072: 30.79 ± 2.75; 262,144: 31.48 ± 3.88 | yes | 65,536 | "
+                                                "1.20× [1.12–1.27] 4/4 (k-means + vehicle routing)"}
+_FLEET_SHARED_ROWS = {"parameter-shared PPO": "1,048,576: 43.12 ± 0.99; 2,097,152: 50.65 ± 11.05 | no | 2,097,152 | "
+                                             "0.61× [0.55–0.66] 0/4 (k-means + vehicle routing)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -258,7 +268,9 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-harbour-across-ppo", _HARBOUR_ACROSS_PPO_ROWS),
                                                 ("learning-curve-harbour-across-sac", _HARBOUR_ACROSS_SAC_ROWS),
                                                 ("learning-curve-fleet-stop-ppo", _FLEET_STOP_ROWS),
-                                                ("learning-curve-fleet-stop-ppo-two", _FLEET_TWO_ROWS)])
+                                                ("learning-curve-fleet-stop-ppo-two", _FLEET_TWO_ROWS),
+                                                ("learning-curve-fleet-stop-ppo-one", _FLEET_ONE_ROWS),
+                                                ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
     fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
