@@ -108,3 +108,37 @@ def test_a_fleet_curve_trains_once_and_its_checkpoint_plays_like_the_run_of_its_
     longer = [r for k, r in a.items() if k != short]
     assert len(longer) == 1 and not longer[0]["extra"]["model_loaded"]
     assert longer[0]["records"] != a[short]["records"]  # the two budgets are two models
+
+
+def test_the_stored_fleet_run_is_the_suite_and_prints_the_rows_docs_quote(tmp_path):
+    """benchmarks/stores/fleet.sqlite is the run of ``swiptopt run fleet`` that docs/fleet.md's
+    suite table quotes: its tasks are the suite's as built today, and every row's return,
+    data, energy and makespan on the page are the ones its table prints from the stored data
+    alone (a page that misquotes the run, or a suite changed without a new run, fails here)."""
+    from pathlib import Path
+
+    from swiptopt.benchmark.experiment import fleet_suite
+    from swiptopt.cli import main
+
+    root = Path(__file__).parents[3]
+    store = root / "benchmarks" / "stores" / "fleet.sqlite"
+    with ResultStore(store, create=False, readonly=True) as stored:
+        assert stored.keys() == {t.key for t in fleet_suite().tasks()}
+    out = tmp_path / "fleet.md"
+    assert main(["table", str(store), "--experiment", "fleet", "--format", "markdown", "--output", str(out)]) == 0
+    printed, header = {}, None
+    for line in out.read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if cells[:2] == ["point", "algorithm"]:
+            header = cells if "rank" in cells else None  # the first table's, not the ratios'
+        elif header and cells[0].startswith("n_auvs="):
+            printed[(cells[0].removeprefix("n_auvs="), cells[1])] = dict(zip(header, cells))
+    page = (root / "docs" / "fleet.md").read_text()
+    section = page[page.index("## The fleet suite"):page.index("### The stop-choosing PPO trained to its plateau")]
+    quoted = [line for line in section.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 4 |"))]
+    assert len(quoted) == 15 == len(printed)
+    for line in quoted:
+        auvs, algorithm, ret, _, data, energy, makespan = [c.strip() for c in line.strip().strip("|").split("|")]
+        row = printed[(auvs, algorithm)]
+        assert (ret, data, energy, makespan) == (row["return"], row["data (kbit)"], row["energy (mJ)"],
+                                                 row["makespan (s)"]), line
