@@ -572,3 +572,23 @@ def test_an_immediate_lock_failure_is_retried_until_the_busy_timeout(tmp_path):
             s._execute_waiting("BEGIN IMMEDIATE")  # gives up at the timeout, not before
         assert time.monotonic() - started >= 0.1 and s._db.calls > 1
         s._db = real
+
+
+def test_the_shipped_stores_are_whole_files_that_reading_leaves_alone():
+    """Each store in benchmarks/stores/ keeps all its rows in the one file git tracks
+    (SQLite's rollback journal, not a write-ahead log that a clone would lack), so reading it
+    in a fresh clone neither misses a row nor leaves a -wal or -shm file beside it."""
+    from pathlib import Path
+
+    stores = sorted((Path(__file__).parents[3] / "benchmarks" / "stores").glob("*.sqlite"))
+    assert len(stores) >= 12
+    for path in stores:
+        db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        try:
+            assert db.execute("PRAGMA journal_mode").fetchone()[0] == "delete", path.name
+            assert db.execute("PRAGMA integrity_check").fetchone()[0] == "ok", path.name
+        finally:
+            db.close()
+        with ResultStore(path, create=False, readonly=True) as stored:
+            assert stored.count() == len(stored.get(stored.keys())) > 0, path.name
+        assert not path.with_name(path.name + "-wal").exists() and not path.with_name(path.name + "-shm").exists()
