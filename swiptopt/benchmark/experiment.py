@@ -45,6 +45,8 @@ algorithm (one with a ``timesteps`` setting: deep RL) at every budget of its lis
 each (``PPO @ 250,000``): a learning curve, each algorithm on its own scale. A training run
 serves every budget of its lineage where the shorter run's model is a checkpoint of the
 longer one (:func:`rl.deep.checkpoint_exact`), so a curve costs about its longest budget.
+A curve runs at one point: with ``budgets``, each swept setting lists one value (a curve's
+table and figure have one line per algorithm; write a file per point).
 
 A top-level ``baseline = "random"`` (one of the experiment's algorithms) adds a second
 table: every other algorithm's mean over the baseline's on the same layouts, with a
@@ -373,6 +375,13 @@ class Experiment:
                 raise ConfigError(f"budgets.{name} and {BUDGET_SETTING} set elsewhere: the budgets set it",
                                   "budgets")
             out[name] = checked
+        sweep = self.sweep if isinstance(self.sweep, dict) else {}  # a malformed sweep is refused later
+        points = math.prod(len(v) for v in sweep.values() if isinstance(v, list))
+        if out and points > 1:
+            # the curve's table and figure have one line per algorithm, so they would show one
+            # point's and hide the others'
+            raise ConfigError(f"budgets with a sweep of {points} points: a learning curve runs at one point; "
+                              "write one experiment file per point (a sweep with one value each)", "budgets")
         object.__setattr__(self, "budgets", out)
 
     def rows(self) -> list[tuple[str, str, int | None]]:

@@ -342,7 +342,8 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
                 ax.text(0.5, 0.5, "not complete in this store", ha="center", va="center", transform=ax.transAxes)
             ax.set_xscale("log", base=2)
             # the stop-choosing agent's budget counts decisions (a stop and its dwell), not steps
-            unit = "steps; stop-choosing PPO: decisions" if "stop_ppo" in experiment.budgets else "steps"
+            stops = any(name.endswith("stop_ppo") for name in experiment.budgets)  # the fleet's too
+            unit = "steps; stop-choosing PPO: decisions" if stops else "steps"
             ax.set_xlabel(f"training budget ({unit})")
             ax.set_ylabel("return")
             ax.set_title(f"{experiment.name} ({experiment.world})")

@@ -110,35 +110,62 @@ def test_a_fleet_curve_trains_once_and_its_checkpoint_plays_like_the_run_of_its_
     assert longer[0]["records"] != a[short]["records"]  # the two budgets are two models
 
 
-def test_the_stored_fleet_run_is_the_suite_and_prints_the_rows_docs_quote(tmp_path):
-    """benchmarks/stores/fleet.sqlite is the run of ``swiptopt run fleet`` that docs/fleet.md's
-    suite table quotes: its tasks are the suite's as built today, and every row's return,
-    data, energy and makespan on the page are the ones its table prints from the stored data
-    alone (a page that misquotes the run, or a suite changed without a new run, fails here)."""
+def _printed_rows(text: str) -> tuple[dict, dict]:
+    """The rows of ``swiptopt table --format markdown``'s two tables (the metrics', and the
+    ratios to the baseline), by (AUVs, algorithm) and column."""
+    tables_, header = ({}, {}), None
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if cells[:2] == ["point", "algorithm"]:
+            header, which = cells, 0 if "rank" in cells else 1
+        elif header and cells[0].startswith("n_auvs="):
+            tables_[which][(cells[0].removeprefix("n_auvs="), cells[1])] = dict(zip(header, cells))
+    return tables_
+
+
+def _suite_columns(cells, printed, ratios):
+    auvs, algorithm, ret, _, data, energy, makespan = cells
+    row = printed[(auvs, algorithm)]
+    return (ret, data, energy, makespan), (row["return"], row["data (kbit)"], row["energy (mJ)"],
+                                           row["makespan (s)"])
+
+
+def _yardstick_columns(cells, printed, ratios):
+    auvs, algorithm, ret, gap, ratio = cells
+    row = printed[(auvs, algorithm)]
+    to_milp = "1" if algorithm == "MILP (fleet)" else ratios[(auvs, algorithm)]["return"].rsplit(" ", 1)[0]
+    return (ret, gap, ratio), (row["return"], row["gap to bound"].split(" [")[0], to_milp)
+
+
+@pytest.mark.parametrize(("experiment", "store", "section", "rows", "columns"), [
+    ("fleet", "fleet.sqlite", ("## The fleet suite", "### The stop-choosing PPO trained to its plateau"), 15,
+     _suite_columns),
+    ("fleet-optimum", "fleet-optimum.sqlite", ("`swiptopt run fleet-optimum` is the fleet's yardstick",
+                                               "## The fleet suite"), 12, _yardstick_columns),
+])
+def test_a_stored_fleet_run_is_its_experiment_and_prints_the_rows_docs_quote(tmp_path, experiment, store, section,
+                                                                              rows, columns):
+    """benchmarks/stores/ holds the runs of ``swiptopt run fleet`` and ``swiptopt run
+    fleet-optimum`` whose tables docs/fleet.md quotes: each store's tasks are its experiment's
+    as built today, and every number of every row on the page is the one its table prints from
+    the stored data alone (a page that misquotes the run, or an experiment changed without a
+    new run, fails here)."""
     from pathlib import Path
 
-    from swiptopt.benchmark.experiment import fleet_suite
     from swiptopt.cli import main
 
     root = Path(__file__).parents[3]
-    store = root / "benchmarks" / "stores" / "fleet.sqlite"
-    with ResultStore(store, create=False, readonly=True) as stored:
-        assert stored.keys() == {t.key for t in fleet_suite().tasks()}
-    out = tmp_path / "fleet.md"
-    assert main(["table", str(store), "--experiment", "fleet", "--format", "markdown", "--output", str(out)]) == 0
-    printed, header = {}, None
-    for line in out.read_text().splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if cells[:2] == ["point", "algorithm"]:
-            header = cells if "rank" in cells else None  # the first table's, not the ratios'
-        elif header and cells[0].startswith("n_auvs="):
-            printed[(cells[0].removeprefix("n_auvs="), cells[1])] = dict(zip(header, cells))
+    path = root / "benchmarks" / "stores" / store
+    with ResultStore(path, create=False, readonly=True) as stored:
+        assert stored.keys() == {t.key for t in builtin_experiments()[experiment].tasks()}
+    out = tmp_path / "table.md"
+    assert main(["table", str(path), "--experiment", experiment, "--format", "markdown", "--output", str(out)]) == 0
+    printed, ratios = _printed_rows(out.read_text())
     page = (root / "docs" / "fleet.md").read_text()
-    section = page[page.index("## The fleet suite"):page.index("### The stop-choosing PPO trained to its plateau")]
-    quoted = [line for line in section.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 4 |"))]
-    assert len(quoted) == 15 == len(printed)
+    start = page.index(section[0])
+    text = page[start:page.index(section[1], start)]
+    quoted = [line for line in text.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 4 |"))]
+    assert len(quoted) == rows == len(printed)
     for line in quoted:
-        auvs, algorithm, ret, _, data, energy, makespan = [c.strip() for c in line.strip().strip("|").split("|")]
-        row = printed[(auvs, algorithm)]
-        assert (ret, data, energy, makespan) == (row["return"], row["data (kbit)"], row["energy (mJ)"],
-                                                 row["makespan (s)"]), line
+        on_page, from_store = columns([c.strip() for c in line.strip().strip("|").split("|")], printed, ratios)
+        assert on_page == from_store, line

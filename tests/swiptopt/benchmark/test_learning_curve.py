@@ -59,6 +59,15 @@ def test_bad_budgets_are_one_line_errors(budgets, words):
     assert "\n" not in str(info.value)
 
 
+def test_a_curve_runs_at_one_sweep_point():
+    """A curve's table and figure have one line per algorithm, so budgets with a sweep of
+    several points (whose lines would hide one another) are refused; one point is a curve."""
+    assert curve(sweep={"n_nodes": [4]}).budgets == {"ppo": [64, 128, 256]}
+    with pytest.raises(ConfigError, match="sweep of 2 points.*one experiment file per point") as info:
+        curve(sweep={"n_nodes": [4, 5]})
+    assert "\n" not in str(info.value) and info.value.field == "budgets"
+
+
 def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
     e = curve()
     with ResultStore(tmp_path / "s.sqlite") as store:
@@ -235,6 +244,33 @@ def test_a_fleet_curve_file_holds_the_fleet_suites_tasks(file, algorithm, n_auvs
     assert len(others) == 4 * (len(budgets) - 1)
 
 
+
+@pytest.mark.parametrize(("word", "n_auvs"), [("one", 1), ("two", 2)])
+def test_a_fleet_optimum_curve_file_holds_the_yardsticks_tasks(word, n_auvs):
+    """benchmarks/learning-curve-fleet-optimum-{one,two}.toml run, at the fleet-optimum
+    experiment's budgets, that experiment's very tasks of both deep learners, the fleet MILP
+    and routing with their number of AUVs (so the experiment's rows are points of the
+    curves), and at their other budgets only other trainings of the same two learners."""
+    from pathlib import Path
+
+    from swiptopt.benchmark.experiment import fleet_optimum
+
+    path = Path(__file__).parents[3] / "benchmarks" / f"learning-curve-fleet-optimum-{word}.toml"
+    curve = Experiment.from_toml(path)
+    tasks = {t.key: t for t in curve.tasks()}
+    yardstick = {t.key: t for t in fleet_optimum().tasks()}
+    shared = {k for k in tasks if k in yardstick}
+    learners = {"fleet_stop_ppo", "shared_ppo"}
+    assert {(yardstick[k].algorithm, yardstick[k].point["n_auvs"]) for k in shared} == {
+        (a, n_auvs) for a in ("fleet_milp", "fleet_routing", *learners)}
+    assert len(shared) == 4 * 4  # 4 layouts, 4 algorithms
+    for algorithm in learners:
+        (budget,) = {yardstick[k].settings["timesteps"] for k in shared if yardstick[k].algorithm == algorithm}
+        others = {t.settings["timesteps"] for k, t in tasks.items() if k not in shared and t.algorithm == algorithm}
+        assert budget in curve.budgets[algorithm] and others == set(curve.budgets[algorithm]) - {budget}
+    assert {t.algorithm for k, t in tasks.items() if k not in shared} == learners
+
+
 _PPO_DQN_ROWS = {
     "PPO": "1,048,576: 16.04 ± 1.73 | yes | 131,072 | 0.75× [0.68–0.81] 0/6 (MILP)",
     "DQN": "1,048,576: 19.39 ± 1.17; 2,097,152: 18.80 ± 1.93 | yes | 524,288 | 0.88× [0.79–0.95] 0/6 (MILP)",
@@ -256,6 +292,16 @@ _FLEET_ONE_ROWS = {"stop-choosing PPO (fleet)": "131,072: 30.79 ± 2.75; 262,144
                                                 "1.20× [1.12–1.27] 4/4 (k-means + vehicle routing)"}
 _FLEET_SHARED_ROWS = {"parameter-shared PPO": "1,048,576: 43.12 ± 0.99; 2,097,152: 50.65 ± 11.05 | no | 2,097,152 | "
                                              "0.61× [0.55–0.66] 0/4 (k-means + vehicle routing)"}
+_FLEET_OPTIMUM_ONE_ROWS = {
+    "stop-choosing PPO (fleet)": "131,072: 9.85 ± 2.87; 262,144: 9.86 ± 2.76 | yes | 32,768 | "
+                                 "0.89× [0.83–0.92] 0/4 (MILP (fleet))",
+    "parameter-shared PPO": "524,288: 8.24 ± 2.58; 1,048,576: 8.15 ± 2.56 | yes | 262,144 | "
+                            "0.74× [0.64–0.84] 0/4 (MILP (fleet))"}
+_FLEET_OPTIMUM_TWO_ROWS = {
+    "stop-choosing PPO (fleet)": "131,072: 14.92 ± 3.05; 262,144: 14.92 ± 3.05 | yes | 32,768 | "
+                                 "0.95× [0.91–0.99] 1/4 (MILP (fleet))",
+    "parameter-shared PPO": "524,288: 11.73 ± 3.11; 1,048,576: 11.68 ± 3.03 | yes | 262,144 | "
+                            "0.75× [0.59–0.87] 0/4 (MILP (fleet))"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -270,7 +316,9 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-stop-ppo", _FLEET_STOP_ROWS),
                                                 ("learning-curve-fleet-stop-ppo-two", _FLEET_TWO_ROWS),
                                                 ("learning-curve-fleet-stop-ppo-one", _FLEET_ONE_ROWS),
-                                                ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS)])
+                                                ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS),
+                                                ("learning-curve-fleet-optimum-one", _FLEET_OPTIMUM_ONE_ROWS),
+                                                ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
     fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
