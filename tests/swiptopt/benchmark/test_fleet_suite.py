@@ -123,14 +123,38 @@ def _printed_rows(text: str) -> tuple[dict, dict]:
     return tables_
 
 
-def _suite_columns(cells, printed, ratios):
-    auvs, algorithm, ret, _, data, energy, makespan = cells
+def _to_routing(results: dict) -> dict:
+    """Each learner's paired ratio of return to routing's on the same layouts, as the suite's
+    table on the page gives it: the mean over layouts, then the lowest and highest layout's,
+    by (AUVs, label)."""
+    import numpy as np
+
+    from swiptopt.benchmark.algorithms import labels
+
+    means: dict = {}
+    for r in results.values():
+        task = r["task"]
+        key = (str(task["point"]["n_auvs"]), task["algorithm"])
+        means.setdefault(key, {})[task["scenario"]["layout_seed"]] = np.mean([x["return"] for x in r["records"]])
+    out = {}
+    for (auvs, algorithm), by_layout in means.items():
+        routing = means[(auvs, "fleet_routing")]
+        q = np.array([by_layout[layout] / routing[layout] for layout in sorted(routing)])
+        out[(auvs, labels()[algorithm])] = f"{q.mean():.2f}× [{q.min():.2f}–{q.max():.2f}]"
+    return out
+
+
+def _suite_columns(cells, printed, ratios, to_routing):
+    auvs, algorithm, ret, ratio, data, energy, makespan = cells
     row = printed[(auvs, algorithm)]
-    return (ret, data, energy, makespan), (row["return"], row["data (kbit)"], row["energy (mJ)"],
-                                           row["makespan (s)"])
+    # routing is the unit; the tabular learners and random have no ratio on the page
+    expected = {"k-means + vehicle routing": "1"}.get(algorithm, to_routing[(auvs, algorithm)] if "PPO" in algorithm
+                                                      else "")
+    return (ret, ratio, data, energy, makespan), (row["return"], expected, row["data (kbit)"], row["energy (mJ)"],
+                                                  row["makespan (s)"])
 
 
-def _yardstick_columns(cells, printed, ratios):
+def _yardstick_columns(cells, printed, ratios, to_routing):
     auvs, algorithm, ret, gap, ratio = cells
     row = printed[(auvs, algorithm)]
     to_milp = "1" if algorithm == "MILP (fleet)" else ratios[(auvs, algorithm)]["return"].rsplit(" ", 1)[0]
@@ -148,7 +172,8 @@ def test_a_stored_fleet_run_is_its_experiment_and_prints_the_rows_docs_quote(tmp
     """benchmarks/stores/ holds the runs of ``swiptopt run fleet`` and ``swiptopt run
     fleet-optimum`` whose tables docs/fleet.md quotes: each store's tasks are its experiment's
     as built today, and every number of every row on the page is the one its table prints from
-    the stored data alone (a page that misquotes the run, or an experiment changed without a
+    the stored data alone (the suite's ratios to routing, which the table does not print, the
+    ones its records give) (a page that misquotes the run, or an experiment changed without a
     new run, fails here)."""
     from pathlib import Path
 
@@ -158,6 +183,7 @@ def test_a_stored_fleet_run_is_its_experiment_and_prints_the_rows_docs_quote(tmp
     path = root / "benchmarks" / "stores" / store
     with ResultStore(path, create=False, readonly=True) as stored:
         assert stored.keys() == {t.key for t in builtin_experiments()[experiment].tasks()}
+        to_routing = _to_routing(stored.get(stored.keys()))
     out = tmp_path / "table.md"
     assert main(["table", str(path), "--experiment", experiment, "--format", "markdown", "--output", str(out)]) == 0
     printed, ratios = _printed_rows(out.read_text())
@@ -167,5 +193,6 @@ def test_a_stored_fleet_run_is_its_experiment_and_prints_the_rows_docs_quote(tmp
     quoted = [line for line in text.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 4 |"))]
     assert len(quoted) == rows == len(printed)
     for line in quoted:
-        on_page, from_store = columns([c.strip() for c in line.strip().strip("|").split("|")], printed, ratios)
+        on_page, from_store = columns([c.strip() for c in line.strip().strip("|").split("|")], printed, ratios,
+                                      to_routing)
         assert on_page == from_store, line

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from swiptopt.benchmark import plots, tables
-from swiptopt.benchmark.experiment import GROUPS, Experiment, learning_curves, load_experiments
+from swiptopt.benchmark.experiment import GROUPS, Experiment, builtin_experiments, learning_curves, load_experiments
 from swiptopt.benchmark.runner import _batches, execute
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.cli import main
@@ -213,62 +213,40 @@ def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
-@pytest.mark.parametrize(("file", "algorithm", "n_auvs"), [
-    ("learning-curve-fleet-stop-ppo.toml", "fleet_stop_ppo", 4),
-    ("learning-curve-fleet-stop-ppo-two.toml", "fleet_stop_ppo", 2),
-    ("learning-curve-fleet-stop-ppo-one.toml", "fleet_stop_ppo", 1),
-    ("learning-curve-fleet-shared-ppo.toml", "shared_ppo", 4),
+_FLEET_LEARNERS = ("fleet_stop_ppo", "shared_ppo")
+
+
+@pytest.mark.parametrize(("file", "built_in", "learners", "n_auvs"), [
+    ("learning-curve-fleet-stop-ppo.toml", "fleet", ["fleet_stop_ppo"], 4),
+    ("learning-curve-fleet-stop-ppo-two.toml", "fleet", ["fleet_stop_ppo"], 2),
+    ("learning-curve-fleet-stop-ppo-one.toml", "fleet", ["fleet_stop_ppo"], 1),
+    ("learning-curve-fleet-shared-ppo.toml", "fleet", ["shared_ppo"], 4),
+    ("learning-curve-fleet-optimum-one.toml", "fleet-optimum", _FLEET_LEARNERS, 1),
+    ("learning-curve-fleet-optimum-two.toml", "fleet-optimum", _FLEET_LEARNERS, 2),
 ])
-def test_a_fleet_curve_file_holds_the_fleet_suites_tasks(file, algorithm, n_auvs):
+def test_a_fleet_curve_file_holds_its_experiments_tasks(file, built_in, learners, n_auvs):
     """The fleet curve files under benchmarks/ (the curves docs/fleet.md quotes) run, at the
-    suite's budget, the very tasks of the fleet suite's learner and routing with their number
-    of AUVs (so one store serves both, and the suite's row is a point of the curve), and at
-    their other budgets only other trainings of the same learner."""
+    budget of the fleet experiment they serve (the suite, or fleet-optimum beside the fleet
+    MILP), that experiment's very tasks of their learners and planners with their number of
+    AUVs (so one store serves both, and the experiment's row is a point of the curve), and at
+    their other budgets only other trainings of the same learners."""
     from pathlib import Path
 
-    from swiptopt.benchmark.experiment import fleet_suite
-
-    path = Path(__file__).parents[3] / "benchmarks" / file
-    experiment = Experiment.from_toml(path)
-    curve = {t.key: t for t in experiment.tasks()}
-    suite = {t.key: t for t in fleet_suite().tasks()}
-    shared = {k for k in curve if k in suite}
-    assert {(suite[k].algorithm, suite[k].point["n_auvs"]) for k in shared} == {(algorithm, n_auvs),
-                                                                                 ("fleet_routing", n_auvs)}
-    assert len(shared) == 8  # the suite's 4 layouts, each algorithm once
-    (suite_budget,) = {suite[k].settings["timesteps"] for k in shared if suite[k].algorithm == algorithm}
-    budgets = experiment.budgets[algorithm]
-    others = [t for k, t in curve.items() if k not in shared]
-    assert {t.algorithm for t in others} == {algorithm}
-    assert sorted({t.settings["timesteps"] for t in others}) == sorted(set(budgets) - {suite_budget})
-    assert len(others) == 4 * (len(budgets) - 1)
-
-
-
-@pytest.mark.parametrize(("word", "n_auvs"), [("one", 1), ("two", 2)])
-def test_a_fleet_optimum_curve_file_holds_the_yardsticks_tasks(word, n_auvs):
-    """benchmarks/learning-curve-fleet-optimum-{one,two}.toml run, at the fleet-optimum
-    experiment's budgets, that experiment's very tasks of both deep learners, the fleet MILP
-    and routing with their number of AUVs (so the experiment's rows are points of the
-    curves), and at their other budgets only other trainings of the same two learners."""
-    from pathlib import Path
-
-    from swiptopt.benchmark.experiment import fleet_optimum
-
-    path = Path(__file__).parents[3] / "benchmarks" / f"learning-curve-fleet-optimum-{word}.toml"
-    curve = Experiment.from_toml(path)
+    curve = Experiment.from_toml(Path(__file__).parents[3] / "benchmarks" / file)
     tasks = {t.key: t for t in curve.tasks()}
-    yardstick = {t.key: t for t in fleet_optimum().tasks()}
-    shared = {k for k in tasks if k in yardstick}
-    learners = {"fleet_stop_ppo", "shared_ppo"}
-    assert {(yardstick[k].algorithm, yardstick[k].point["n_auvs"]) for k in shared} == {
-        (a, n_auvs) for a in ("fleet_milp", "fleet_routing", *learners)}
-    assert len(shared) == 4 * 4  # 4 layouts, 4 algorithms
-    for algorithm in learners:
-        (budget,) = {yardstick[k].settings["timesteps"] for k in shared if yardstick[k].algorithm == algorithm}
-        others = {t.settings["timesteps"] for k, t in tasks.items() if k not in shared and t.algorithm == algorithm}
-        assert budget in curve.budgets[algorithm] and others == set(curve.budgets[algorithm]) - {budget}
-    assert {t.algorithm for k, t in tasks.items() if k not in shared} == learners
+    theirs = {t.key: t for t in builtin_experiments()[built_in].tasks()}
+    shared = {k for k in tasks if k in theirs}
+    planners = [name for name in curve.algorithms if name not in curve.budgets]
+    assert sorted(curve.budgets) == sorted(learners)
+    assert {(theirs[k].algorithm, theirs[k].point["n_auvs"]) for k in shared} == {
+        (name, n_auvs) for name in (*planners, *learners)}
+    assert len(shared) == 4 * (len(planners) + len(learners))  # 4 layouts, each algorithm once
+    for name in learners:
+        (budget,) = {theirs[k].settings["timesteps"] for k in shared if theirs[k].algorithm == name}
+        others = [t for k, t in tasks.items() if k not in shared and t.algorithm == name]
+        assert sorted({t.settings["timesteps"] for t in others}) == sorted(set(curve.budgets[name]) - {budget})
+        assert len(others) == 4 * (len(curve.budgets[name]) - 1)
+    assert {t.algorithm for k, t in tasks.items() if k not in shared} == set(learners)
 
 
 _PPO_DQN_ROWS = {
