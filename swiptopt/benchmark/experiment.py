@@ -41,8 +41,9 @@ learning curve); a swept setting applies to the algorithms that have it, and the
 tasks are the same at every point (computed once).
 
 ``budgets = {ppo = [62500, 250000, 1000000], stop_ppo = [25000, 100000]}`` runs each named
-algorithm (one with a ``timesteps`` setting: deep RL) at every budget of its list, a row
-each (``PPO @ 250,000``): a learning curve, each algorithm on its own scale. A training run
+algorithm at every budget of its list, a row each (``PPO @ 250,000``): a learning curve,
+each algorithm on its own scale. A budget sets deep RL's ``timesteps`` or, for an algorithm
+without it (tabular RL), its ``train_episodes`` (:data:`BUDGET_SETTINGS`). A training run
 serves every budget of its lineage where the shorter run's model is a checkpoint of the
 longer one (:func:`rl.deep.checkpoint_exact`), so a curve costs about its longest budget.
 A curve runs at one point: with ``budgets``, each swept setting lists one value (a curve's
@@ -124,8 +125,9 @@ SEEDS_PER_LAYOUT = 1000
 
 TOP_KEYS = {"name", "description", "layouts", "seeds", "episodes", "scenario", "sweep", "algorithms", "figure",
             "baseline", "training_layouts", "plugins", "world", "budgets"}
-#: The setting a learning curve's budgets set.
-BUDGET_SETTING = "timesteps"
+#: The settings a learning curve's budgets may set, the first an algorithm has: deep RL's
+#: training steps, else tabular RL's training episodes.
+BUDGET_SETTINGS = ("timesteps", "train_episodes")
 #: The most budgets one algorithm's curve may list.
 MAX_BUDGETS = 32
 #: The largest layout seed an experiment names: a task's seed, 1000 x layout + s, and its
@@ -164,7 +166,8 @@ class Task:
     world: str = GRID
     """The world the task runs in (:mod:`swiptopt.worlds`)."""
     budget: int | None = None
-    """The learning-curve budget this task is a point of (its ``timesteps``), if any."""
+    """The learning-curve budget this task is a point of (its ``timesteps`` or, for tabular
+    RL, ``train_episodes``), if any."""
 
     @property
     def row(self) -> str:
@@ -356,24 +359,23 @@ class Experiment:
             if name not in self.algorithms:
                 raise ConfigError(f"budgets.{name}: {name!r} is not one of the experiment's algorithms "
                                   f"({', '.join(self.algorithms)})", "budgets")
+            setting = self.budget_setting(name)
+            if setting is None:
+                raise ConfigError(f"budgets.{name}: {name} has no {' or '.join(map(repr, BUDGET_SETTINGS))} setting "
+                                  "to run at budgets (deep and tabular RL have)", "budgets")
             if name in self.recorded_settings:  # checked against the algorithm's own when it ran
                 spec = Spec(kind="int", lo=1)
             else:
-                schema = get_algorithm(name, self.plugins.get(name, "")).settings
-                if BUDGET_SETTING not in schema:
-                    raise ConfigError(f"budgets.{name}: {name} has no {BUDGET_SETTING!r} setting to run at budgets "
-                                      "(deep-RL algorithms have)", "budgets")
-                spec = schema[BUDGET_SETTING]
+                spec = get_algorithm(name, self.plugins.get(name, "")).settings[setting]
             if not isinstance(values, list) or not 1 <= len(values) <= MAX_BUDGETS:
-                raise ConfigError(f"budgets.{name} = {values!r} must be a list of 1 to {MAX_BUDGETS} step counts",
-                                  "budgets")
+                raise ConfigError(f"budgets.{name} = {values!r} must be a list of 1 to {MAX_BUDGETS} values of "
+                                  f"{setting}", "budgets")
             checked = [check_setting(f"budgets.{name}[{i}]", v, spec, "budgets") for i, v in enumerate(values)]
             if len(set(checked)) < len(checked) or checked != sorted(checked):
-                raise ConfigError(f"budgets.{name} = {values!r} must list distinct step counts in increasing order",
-                                  "budgets")
-            if BUDGET_SETTING in self.algorithms[name] or BUDGET_SETTING in self.sweep:
-                raise ConfigError(f"budgets.{name} and {BUDGET_SETTING} set elsewhere: the budgets set it",
-                                  "budgets")
+                raise ConfigError(f"budgets.{name} = {values!r} must list distinct values of {setting} in "
+                                  "increasing order", "budgets")
+            if setting in self.algorithms[name] or setting in self.sweep:
+                raise ConfigError(f"budgets.{name} and {setting} set elsewhere: the budgets set it", "budgets")
             out[name] = checked
         sweep = self.sweep if isinstance(self.sweep, dict) else {}  # a malformed sweep is refused later
         points = math.prod(len(v) for v in sweep.values() if isinstance(v, list))
@@ -383,6 +385,12 @@ class Experiment:
             raise ConfigError(f"budgets with a sweep of {points} points: a learning curve runs at one point; "
                               "write one experiment file per point (a sweep with one value each)", "budgets")
         object.__setattr__(self, "budgets", out)
+
+    def budget_setting(self, name: str) -> str | None:
+        """The setting algorithm ``name``'s learning-curve budgets set (:data:`BUDGET_SETTINGS`),
+        or None if it has neither."""
+        names = self._setting_names(name)
+        return next((setting for setting in BUDGET_SETTINGS if setting in names), None)
 
     def rows(self) -> list[tuple[str, str, int | None]]:
         """The table's rows in order: (row name, algorithm, budget); an algorithm with
@@ -629,11 +637,12 @@ class Experiment:
 
     def _without_budget(self, name: str, settings: dict[str, Any]) -> dict[str, Any]:
         """``settings`` without the budget setting when the budgets set it."""
-        return {k: v for k, v in settings.items() if not (name in self.budgets and k == BUDGET_SETTING)}
+        return {k: v for k, v in settings.items() if not (name in self.budgets and k == self.budget_setting(name))}
 
     def _quick_budgets(self, name: str, values: list[int]) -> list[int]:
-        """An algorithm's first two budgets under ``--quick``: its quick ``timesteps`` and twice it."""
-        quick = get_algorithm(name, self.plugins.get(name, "")).settings[BUDGET_SETTING].quick
+        """An algorithm's first two budgets under ``--quick``: its budget setting's quick value
+        and twice it."""
+        quick = get_algorithm(name, self.plugins.get(name, "")).settings[self.budget_setting(name)].quick
         return [min(v, quick * 2**i) if quick is not None else v for i, v in enumerate(values[:2])]
 
     def _quick_values(self, key: str, values: list[Any]) -> list[Any]:
@@ -675,8 +684,9 @@ class Experiment:
                     task_settings = {k: v for k, v in settings.items() if k not in EXPANSION_SETTINGS}
                     across = settings.get(TRAINING) == ACROSS_LAYOUTS
                     training = tuple(self.training_layouts) if across and self.training_layouts else None
+                    setting = self.budget_setting(name) if name in self.budgets else None
                     for budget in self.budgets.get(name, [None]):
-                        at = task_settings if budget is None else {**task_settings, BUDGET_SETTING: budget}
+                        at = task_settings if budget is None else {**task_settings, setting: budget}
                         for s in range(self.seeds_of(settings)):
                             out.append(Task(self.name, scenario, name, at, SEEDS_PER_LAYOUT * layout + s,
                                             self.episodes, point, training, self.plugins.get(name, ""), self.world,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -289,6 +290,22 @@ def fleet_routes_figure(outdir: str | Path, layout_seed: int = 0, sizes: tuple[i
     return paths
 
 
+def _budget_units(experiment: Any) -> str:
+    """What the budgets of a learning curve's algorithms count, for its x axis: steps (deep
+    RL), decisions (a stop-choosing agent: a stop and its dwell, several steps) or episodes
+    (tabular RL, whose budgets set ``train_episodes``); the most common first, the others
+    named by algorithm."""
+    units = {}
+    for name in experiment.budgets:
+        if experiment.budget_setting(name) == "train_episodes":
+            units[name] = "episodes"
+        else:
+            units[name] = "decisions" if name.endswith("stop_ppo") else "steps"  # the fleet's too
+    counts = Counter(units.values())
+    main = max(counts, key=lambda unit: (counts[unit], unit == "steps"))
+    others = [f"{name}: {unit}" for name, unit in units.items() if unit != main]
+    return "; ".join([main, *others])
+
 def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:
@@ -341,10 +358,7 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
             if not rows:
                 ax.text(0.5, 0.5, "not complete in this store", ha="center", va="center", transform=ax.transAxes)
             ax.set_xscale("log", base=2)
-            # the stop-choosing agent's budget counts decisions (a stop and its dwell), not steps
-            stops = any(name.endswith("stop_ppo") for name in experiment.budgets)  # the fleet's too
-            unit = "steps; stop-choosing PPO: decisions" if stops else "steps"
-            ax.set_xlabel(f"training budget ({unit})")
+            ax.set_xlabel(f"training budget ({_budget_units(experiment)})")
             ax.set_ylabel("return")
             ax.set_title(f"{experiment.name} ({experiment.world})")
             ax.grid(alpha=0.3)

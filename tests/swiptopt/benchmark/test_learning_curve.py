@@ -48,7 +48,7 @@ def test_budgets_expand_into_a_row_per_budget_and_one_lineage_per_model():
 @pytest.mark.parametrize("budgets, words", [
     ({"ppo": [128, 64]}, "increasing order"),
     ({"ppo": [64, 64]}, "distinct"),
-    ({"greedy": [64]}, "no 'timesteps' setting"),
+    ({"greedy": [64]}, "no 'timesteps' or 'train_episodes' setting"),
     ({"dqn": [64]}, "not one of the experiment's algorithms"),
     ({"ppo": []}, "1 to 32"),
     ({"ppo": [0]}, "budgets.ppo"),
@@ -57,6 +57,29 @@ def test_bad_budgets_are_one_line_errors(budgets, words):
     with pytest.raises(ConfigError, match=words) as info:
         curve(budgets=budgets)
     assert "\n" not in str(info.value)
+
+
+def test_a_tabular_learners_budgets_set_its_training_episodes():
+    """Budgets of an algorithm without ``timesteps`` (tabular RL) set its ``train_episodes``:
+    each budget's tasks are, key for key, those of the experiment that trains that many
+    episodes (so a suite's row is a point of the curve), --quick shrinks them to the
+    setting's quick value and twice it, and the figure's axis counts episodes."""
+    q = {"q_learning": {"learning_rate": 0.2}, "greedy": {}}
+    e = curve(algorithms=q, budgets={"q_learning": [3000, 6000, 12000]})
+    assert e.budget_setting("q_learning") == "train_episodes" and e.budget_setting("greedy") is None
+    assert [r for r, _, _ in e.rows()] == ["q_learning@3000", "q_learning@6000", "q_learning@12000", "greedy"]
+    for budget in (3000, 12000):
+        alone = curve(algorithms={"q_learning": {"learning_rate": 0.2, "train_episodes": budget}, "greedy": {}},
+                      budgets={})
+        keys = {t.key for t in alone.tasks() if t.algorithm == "q_learning"}
+        assert keys == {t.key for t in e.tasks() if t.budget == budget} and len(keys) == 2
+    assert sorted({t.settings["train_episodes"] for t in e.quick().tasks() if t.budget}) == [2000, 4000]
+    assert plots._budget_units(e) == "episodes"
+    mixed = curve(algorithms={**q, "ppo": TINY_PPO, "stop_ppo": {}},
+                  budgets={"q_learning": [64], "ppo": [64], "stop_ppo": [64]})
+    assert plots._budget_units(mixed) == "steps; q_learning: episodes; stop_ppo: decisions"
+    with pytest.raises(ConfigError, match="budgets.q_learning and train_episodes set elsewhere"):
+        curve(algorithms={"q_learning": {"train_episodes": 10}}, budgets={"q_learning": [64]})
 
 
 def test_a_curve_runs_at_one_sweep_point():
@@ -223,6 +246,9 @@ _FLEET_LEARNERS = ("fleet_stop_ppo", "shared_ppo")
     ("learning-curve-fleet-shared-ppo.toml", "fleet", ["shared_ppo"], 4),
     ("learning-curve-fleet-optimum-one.toml", "fleet-optimum", _FLEET_LEARNERS, 1),
     ("learning-curve-fleet-optimum-two.toml", "fleet-optimum", _FLEET_LEARNERS, 2),
+    ("learning-curve-fleet-q-learning-one.toml", "fleet", ["fleet_q_learning"], 1),
+    ("learning-curve-fleet-q-learning-two.toml", "fleet", ["fleet_q_learning"], 2),
+    ("learning-curve-fleet-q-learning-four.toml", "fleet", ["fleet_q_learning"], 4),
 ])
 def test_a_fleet_curve_file_holds_its_experiments_tasks(file, built_in, learners, n_auvs):
     """The fleet curve files under benchmarks/ (the curves docs/fleet.md quotes) run, at the
@@ -242,9 +268,10 @@ def test_a_fleet_curve_file_holds_its_experiments_tasks(file, built_in, learners
         (name, n_auvs) for name in (*planners, *learners)}
     assert len(shared) == 4 * (len(planners) + len(learners))  # 4 layouts, each algorithm once
     for name in learners:
-        (budget,) = {theirs[k].settings["timesteps"] for k in shared if theirs[k].algorithm == name}
+        setting = curve.budget_setting(name)  # timesteps, or a tabular learner's train_episodes
+        (budget,) = {theirs[k].settings[setting] for k in shared if theirs[k].algorithm == name}
         others = [t for k, t in tasks.items() if k not in shared and t.algorithm == name]
-        assert sorted({t.settings["timesteps"] for t in others}) == sorted(set(curve.budgets[name]) - {budget})
+        assert sorted({t.settings[setting] for t in others}) == sorted(set(curve.budgets[name]) - {budget})
         assert len(others) == 4 * (len(curve.budgets[name]) - 1)
     assert {t.algorithm for k, t in tasks.items() if k not in shared} == set(learners)
 
