@@ -307,6 +307,12 @@ _FLEET_OPTIMUM_TWO_ROWS = {
                                  "0.95× [0.91–0.99] 1/4 (MILP (fleet))",
     "parameter-shared PPO": "524,288: 11.73 ± 3.11; 1,048,576: 11.68 ± 3.03 | yes | 262,144 | "
                             "0.75× [0.59–0.87] 0/4 (MILP (fleet))"}
+_FLEET_Q_ONE_ROWS = {
+    "independent Q-learning": "40,000: 14.76 ± 3.58 | yes | 20,000 | 0.56× [0.48–0.65] 0/4 (k-means + vehicle routing)"}
+_FLEET_Q_TWO_ROWS = {
+    "independent Q-learning": "40,000: 28.97 ± 9.65 | yes | 20,000 | 0.59× [0.50–0.70] 0/4 (k-means + vehicle routing)"}
+_FLEET_Q_FOUR_ROWS = {
+    "independent Q-learning": "40,000: 49.63 ± 9.34 | yes | 20,000 | 0.60× [0.56–0.62] 0/4 (k-means + vehicle routing)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -323,7 +329,10 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-stop-ppo-one", _FLEET_ONE_ROWS),
                                                 ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS),
                                                 ("learning-curve-fleet-optimum-one", _FLEET_OPTIMUM_ONE_ROWS),
-                                                ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS)])
+                                                ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS),
+                                                ("learning-curve-fleet-q-learning-one", _FLEET_Q_ONE_ROWS),
+                                                ("learning-curve-fleet-q-learning-two", _FLEET_Q_TWO_ROWS),
+                                                ("learning-curve-fleet-q-learning-four", _FLEET_Q_FOUR_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
     fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
