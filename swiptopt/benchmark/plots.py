@@ -306,6 +306,7 @@ def _budget_units(experiment: Any) -> str:
     others = [f"{name}: {unit}" for name, unit in units.items() if unit != main]
     return "; ".join([main, *others])
 
+
 def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:
