@@ -932,6 +932,10 @@ _FLEET_LAYOUTS = 4
 #: (50.65), which the suite's time cannot afford for every fleet size, so that row is a
 #: lower estimate.
 FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 1_048_576}
+#: Independent Q-learning's training episodes in the fleet suite: the end of its learning
+#: curves on the suite's field, flat from 20,000 episodes with 1, 2 and 4 AUVs
+#: (benchmarks/learning-curve-fleet-q-learning-*.toml); 5,000 understated it 2 to 3.6 times.
+FLEET_Q_EPISODES = 40_000
 
 
 def fleet_suite() -> Experiment:
@@ -947,7 +951,7 @@ def fleet_suite() -> Experiment:
         scenario=FLEET_SCENARIO,
         sweep={"n_auvs": FLEET_SIZES},
         algorithms={"fleet_routing": {}, **{name: {"timesteps": steps} for name, steps in FLEET_TIMESTEPS.items()},
-                    "fleet_q_learning": {"train_episodes": 5_000}, "fleet_random": {}},
+                    "fleet_q_learning": {"train_episodes": FLEET_Q_EPISODES}, "fleet_random": {}},
         layouts=_FLEET_LAYOUTS,
         episodes=10,
         baseline="fleet_random",

@@ -147,9 +147,8 @@ def _to_routing(results: dict) -> dict:
 def _suite_columns(cells, printed, ratios, to_routing):
     auvs, algorithm, ret, ratio, data, energy, makespan = cells
     row = printed[(auvs, algorithm)]
-    # routing is the unit; the tabular learners and random have no ratio on the page
-    expected = {"k-means + vehicle routing": "1"}.get(algorithm, to_routing[(auvs, algorithm)] if "PPO" in algorithm
-                                                      else "")
+    # routing is the unit; random moves have no ratio on the page
+    expected = {"k-means + vehicle routing": "1", "random (each AUV)": ""}.get(algorithm, to_routing[(auvs, algorithm)])
     return (ret, ratio, data, energy, makespan), (row["return"], expected, row["data (kbit)"], row["energy (mJ)"],
                                                   row["makespan (s)"])
 
