@@ -932,9 +932,11 @@ _FLEET_LAYOUTS = 4
 #: (50.65), which the suite's time cannot afford for every fleet size, so that row is a
 #: lower estimate.
 FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 1_048_576}
-#: Independent Q-learning's training episodes in the fleet suite: the end of its learning
-#: curves on the suite's field, flat from 20,000 episodes with 1, 2 and 4 AUVs
-#: (benchmarks/learning-curve-fleet-q-learning-*.toml); 5,000 understated it 2 to 3.6 times.
+#: Independent Q-learning's training episodes in the fleet suite and in fleet-optimum: the
+#: end of its learning curves, flat from 20,000 episodes on the suite's field with 1, 2 and 4
+#: AUVs (benchmarks/learning-curve-fleet-q-learning-*.toml) and from 10,000 on the
+#: yardstick's (benchmarks/learning-curve-fleet-optimum-q-learning-*.toml); 5,000
+#: understated it up to 3.6 times.
 FLEET_Q_EPISODES = 40_000
 
 
@@ -974,7 +976,7 @@ def fleet_optimum() -> Experiment:
         scenario=FLEET_OPTIMUM_SCENARIO,
         sweep={"n_auvs": [1, 2]},
         algorithms={"fleet_milp": {"budget": "compare"}, "fleet_routing": {}, "fleet_stop_ppo": {},
-                    "shared_ppo": {}, "fleet_q_learning": {"train_episodes": 5_000}, "fleet_random": {}},
+                    "shared_ppo": {}, "fleet_q_learning": {"train_episodes": FLEET_Q_EPISODES}, "fleet_random": {}},
         layouts=_FLEET_LAYOUTS,
         episodes=10,
         baseline="fleet_milp",

@@ -249,6 +249,8 @@ _FLEET_LEARNERS = ("fleet_stop_ppo", "shared_ppo")
     ("learning-curve-fleet-q-learning-one.toml", "fleet", ["fleet_q_learning"], 1),
     ("learning-curve-fleet-q-learning-two.toml", "fleet", ["fleet_q_learning"], 2),
     ("learning-curve-fleet-q-learning-four.toml", "fleet", ["fleet_q_learning"], 4),
+    ("learning-curve-fleet-optimum-q-learning-one.toml", "fleet-optimum", ["fleet_q_learning"], 1),
+    ("learning-curve-fleet-optimum-q-learning-two.toml", "fleet-optimum", ["fleet_q_learning"], 2),
 ])
 def test_a_fleet_curve_file_holds_its_experiments_tasks(file, built_in, learners, n_auvs):
     """The fleet curve files under benchmarks/ (the curves docs/fleet.md quotes) run, at the
@@ -313,6 +315,12 @@ _FLEET_Q_TWO_ROWS = {
     "independent Q-learning": "40,000: 28.97 ± 9.65 | yes | 20,000 | 0.59× [0.50–0.70] 0/4 (k-means + vehicle routing)"}
 _FLEET_Q_FOUR_ROWS = {
     "independent Q-learning": "40,000: 49.63 ± 9.34 | yes | 20,000 | 0.60× [0.56–0.62] 0/4 (k-means + vehicle routing)"}
+_FLEET_OPTIMUM_Q_ONE_ROWS = {
+    "independent Q-learning": "20,000: 6.19 ± 2.63; 40,000: 5.69 ± 4.07 | yes | 10,000 | 0.51× [0.31–0.61] 0/4 "
+                              "(MILP (fleet))"}
+_FLEET_OPTIMUM_Q_TWO_ROWS = {
+    "independent Q-learning": "20,000: 7.78 ± 5.75; 40,000: 8.50 ± 7.92 | yes | 10,000 | 0.54× [0.31–0.73] 0/4 "
+                              "(MILP (fleet))"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
@@ -332,7 +340,11 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS),
                                                 ("learning-curve-fleet-q-learning-one", _FLEET_Q_ONE_ROWS),
                                                 ("learning-curve-fleet-q-learning-two", _FLEET_Q_TWO_ROWS),
-                                                ("learning-curve-fleet-q-learning-four", _FLEET_Q_FOUR_ROWS)])
+                                                ("learning-curve-fleet-q-learning-four", _FLEET_Q_FOUR_ROWS),
+                                                ("learning-curve-fleet-optimum-q-learning-one",
+                                                 _FLEET_OPTIMUM_Q_ONE_ROWS),
+                                                ("learning-curve-fleet-optimum-q-learning-two",
+                                                 _FLEET_OPTIMUM_Q_TWO_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
     """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
     fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
