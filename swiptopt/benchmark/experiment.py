@@ -392,6 +392,14 @@ class Experiment:
         names = self._setting_names(name)
         return next((setting for setting in BUDGET_SETTINGS if setting in names), None)
 
+    def budget_unit(self, name: str) -> str:
+        """What algorithm ``name``'s learning-curve budgets count: ``episodes`` (tabular RL,
+        whose budgets set ``train_episodes``), ``decisions`` (a stop-choosing agent, the
+        fleet's too: a stop and its dwell, several steps) or ``steps``."""
+        if self.budget_setting(name) == "train_episodes":
+            return "episodes"
+        return "decisions" if name.endswith("stop_ppo") else "steps"
+
     def rows(self) -> list[tuple[str, str, int | None]]:
         """The table's rows in order: (row name, algorithm, budget); an algorithm with
         budgets has a row per budget."""

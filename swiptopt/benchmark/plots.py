@@ -295,12 +295,7 @@ def _budget_units(experiment: Any) -> str:
     RL), decisions (a stop-choosing agent: a stop and its dwell, several steps) or episodes
     (tabular RL, whose budgets set ``train_episodes``); the most common first, the others
     named by algorithm."""
-    units = {}
-    for name in experiment.budgets:
-        if experiment.budget_setting(name) == "train_episodes":
-            units[name] = "episodes"
-        else:
-            units[name] = "decisions" if name.endswith("stop_ppo") else "steps"  # the fleet's too
+    units = {name: experiment.budget_unit(name) for name in experiment.budgets}
     counts = Counter(units.values())
     main = max(counts, key=lambda unit: (counts[unit], unit == "steps"))
     others = [f"{name}: {unit}" for name, unit in units.items() if unit != main]

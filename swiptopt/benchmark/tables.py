@@ -627,6 +627,8 @@ class CurveRow:
     while the last budget or the reference is incomplete."""
     tasks: tuple[tuple[int, int], ...] = ()
     """Per budget, (tasks with a result, tasks of the budget)."""
+    unit: str = "steps"
+    """What the budgets count (:meth:`~swiptopt.benchmark.experiment.Experiment.budget_unit`)."""
 
     @property
     def complete(self) -> tuple[bool, ...]:
@@ -669,16 +671,28 @@ def curve_rows(experiment: Experiment, store: ResultStore | Stored, seed: int = 
             ratio = Ratio.of(np.array([mine[k] for k in common]), np.array([base[k] for k in common]), rng)
         out.append(CurveRow(experiment.name, name, names.get(name, name), tuple(budgets), tuple(summaries), flat,
                             near, best.label if best else "", best.summaries["return"] if best else None, ratio,
-                            tasks))
+                            tasks, experiment.budget_unit(name)))
     return out
+
+
+def _budget_head(rows: list[CurveRow]) -> str:
+    """The budget column's header: what the budgets count, each algorithm's where the rows
+    differ (``decisions: mean ± 95 % CI``, or ``mean ± 95 % CI; budgets in decisions for
+    A, in steps for B``)."""
+    units = list(dict.fromkeys(r.unit for r in rows)) or ["steps"]
+    if len(units) == 1:
+        return f"{units[0]}: mean ± 95 % CI"
+    each = [f"in {u} for {' and '.join(dict.fromkeys(r.label for r in rows if r.unit == u))}" for u in units]
+    return "mean ± 95 % CI; budgets " + ", ".join(each)
 
 
 def curves_to_markdown(rows: list[CurveRow]) -> str:
     """The learning curves as a Markdown table: return at each budget, whether flat, the
     budget within 10 % of the last, and the last budget against the best planner. An
     incomplete budget's cell says how many of its tasks have a result, and a verdict that
-    needs an incomplete budget reads ``incomplete``."""
-    heads = ["experiment", "algorithm", "return at each budget (steps: mean ± 95 % CI)", "flat at the end",
+    needs an incomplete budget reads ``incomplete``. The header names what the budgets count
+    (steps, decisions or episodes), each algorithm's where the rows differ."""
+    heads = ["experiment", "algorithm", f"return at each budget ({_budget_head(rows)})", "flat at the end",
              "within 10 % from", "last / best planner"]
     cells = []
     for r in rows:

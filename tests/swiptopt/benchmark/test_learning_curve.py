@@ -82,6 +82,26 @@ def test_a_tabular_learners_budgets_set_its_training_episodes():
         curve(algorithms={"q_learning": {"train_episodes": 10}}, budgets={"q_learning": [64]})
 
 
+@pytest.mark.parametrize(("name", "head"), [
+    ("learning-curve-grid-tabular", "episodes: mean ± 95 % CI"),
+    ("learning-curve-grid-stop-ppo", "decisions: mean ± 95 % CI"),
+    ("learning-curve-grid-ppo-dqn", "steps: mean ± 95 % CI"),
+    ("learning-curve-fleet-optimum-one",
+     "mean ± 95 % CI; budgets in decisions for stop-choosing PPO (fleet), in steps for parameter-shared PPO"),
+])
+def test_a_curve_tables_header_names_what_its_budgets_count(tmp_path, name, head):
+    """The curve table's budget column says what the budgets count: training episodes for
+    tabular RL, decisions for a stop-choosing agent, steps for the others, and each
+    algorithm's where an experiment mixes them."""
+    from pathlib import Path
+
+    out = tmp_path / "curve.md"
+    store = Path(__file__).parents[3] / "benchmarks" / "stores" / f"{name}.sqlite"
+    assert main(["table", str(store), "--experiment", name, "--format", "markdown", "--output", str(out)]) == 0
+    (header,) = [line for line in out.read_text().splitlines() if line.startswith("| experiment | algorithm |")]
+    assert header.split(" | ")[2] == f"return at each budget ({head})"
+
+
 def test_a_curve_runs_at_one_sweep_point():
     """A curve's table and figure have one line per algorithm, so budgets with a sweep of
     several points (whose lines would hide one another) are refused; one point is a curve."""
@@ -236,6 +256,28 @@ def test_a_curve_file_is_the_built_in_curve_without_the_other_agents(file, built
     assert subset.budgets == {k: v for k, v in built_in.budgets.items() if k not in left_out}
 
 
+def test_the_grid_tabular_curve_file_holds_the_standard_suites_tabular_and_planner_tasks():
+    """benchmarks/learning-curve-grid-tabular.toml (the curve docs/results.md quotes for
+    Q-learning and SARSA) runs, for its first training seed at the standard suite's 20,000
+    episodes, the suite's very tasks of both learners and of its planners (so its row is a
+    point of the curve), and otherwise only other seeds and other budgets of the same."""
+    from pathlib import Path
+
+    curve = Experiment.from_toml(Path(__file__).parents[3] / "benchmarks" / "learning-curve-grid-tabular.toml")
+    tasks = {t.key: t for t in curve.tasks()}
+    suite = {t.key: t for t in builtin_experiments()["compare"].tasks()}
+    shared = tasks.keys() & suite.keys()
+    names = ("q_learning", "sarsa", "kmeans_tsp", "rate_greedy", "milp")
+    assert sorted(suite[k].algorithm for k in shared) == sorted(n for n in names for _ in range(6))
+    assert {tasks[k].settings["train_episodes"] for k in shared if tasks[k].budget} == {20_000}
+    assert {t.algorithm for t in tasks.values()} == set(names)
+    for name in ("q_learning", "sarsa"):
+        runs = [t for t in tasks.values() if t.algorithm == name]
+        assert len(runs) == 6 * 3 * len(curve.budgets[name])  # 6 layouts, 3 seeds, every budget
+        assert sorted({t.settings["train_episodes"] for t in runs}) == curve.budgets[name]
+        assert 20_000 in curve.budgets[name]
+
+
 _FLEET_LEARNERS = ("fleet_stop_ppo", "shared_ppo")
 
 
@@ -321,12 +363,16 @@ _FLEET_OPTIMUM_Q_ONE_ROWS = {
 _FLEET_OPTIMUM_Q_TWO_ROWS = {
     "independent Q-learning": "20,000: 7.78 ± 5.75; 40,000: 8.50 ± 7.92 | yes | 10,000 | 0.54× [0.31–0.73] 0/4 "
                               "(MILP (fleet))"}
+_GRID_TABULAR_ROWS = {
+    "Q-learning": "80,000: 12.79 ± 0.95; 160,000: 12.71 ± 1.64 | yes | 20,000 | 0.60× [0.55–0.65] 0/6 (MILP)",
+    "SARSA": "80,000: 8.64 ± 1.21; 160,000: 9.03 ± 1.21 | yes | 5,000 | 0.42× [0.35–0.49] 0/6 (MILP)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
 
 
 @pytest.mark.parametrize(("name", "expected"), [("learning-curve-grid-ppo-dqn", _PPO_DQN_ROWS),
                                                 ("learning-curve-grid-stop-ppo", _STOP_ROWS),
+                                                ("learning-curve-grid-tabular", _GRID_TABULAR_ROWS),
                                                 ("learning-curve-harbour-stop-ppo", _HARBOUR_STOP_ROWS),
                                                 ("learning-curve-harbour-ppo", _HARBOUR_PPO_ROWS),
                                                 ("learning-curve-harbour-sac", _HARBOUR_SAC_ROWS),
