@@ -86,6 +86,11 @@ _RESERVED = ("policy", "env", "seed", "device", "policy_kwargs", "verbose", "ten
 OBSERVATION = "vector"
 #: The most copies of the environment one training steps at once.
 MAX_ENVS = 1024
+#: The ``env_id`` of parameter-shared fleet training: not a Gymnasium registration but
+#: :func:`rl.fleet.make_shared_vec_env` over ``n_envs`` copies of the scenario's fleet, whose
+#: sub-environments are every AUV of every copy (one policy for all of them). Its steps are
+#: AUV steps, and an on-policy rollout is ``n_envs * n_auvs * n_steps`` of them.
+FLEET_SHARED_ENV_ID = "swiptopt/FleetShared"
 
 
 def _check_algorithm(algorithm: Any) -> str:
@@ -288,7 +293,8 @@ class DeepConfig:
     """Copies of the environment stepped together (copy i seeded with ``seed + i``)."""
     env_id: str | None = None
     """A registered environment to train on instead of the world's own (made with
-    ``gymnasium.make(env_id, scenario=..., layout_seeds=..., **env_kwargs)``)."""
+    ``gymnasium.make(env_id, scenario=..., layout_seeds=..., **env_kwargs)``), or
+    :data:`FLEET_SHARED_ENV_ID` (the fleet's parameter-shared vector env)."""
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
     """More arguments of ``env_id``'s environment (plain data)."""
 
@@ -572,8 +578,22 @@ def _progress_callback(report: Callable[[int, int, bool], None], total: int) -> 
     return Progress()
 
 
+def _fleet_shared(n_copies: int, config: DeepConfig, scenario: Scenario) -> Any:
+    """The parameter-shared vector env of :data:`FLEET_SHARED_ENV_ID` over ``n_copies``
+    copies of the scenario's fleet (on its own layout)."""
+    from rl.fleet import make_shared_vec_env
+
+    if config.layout_seeds is not None:
+        raise ConfigError(f"{FLEET_SHARED_ENV_ID} trains on the scenario's layout: layout_seeds must be None",
+                          "layout_seeds")
+    return make_shared_vec_env(n_copies, scenario, **config.env_kwargs)
+
+
 def _make_one(config: DeepConfig, scenario: Scenario) -> Any:
-    """One copy of the training environment of ``config`` on ``scenario``."""
+    """One copy of the training environment of ``config`` on ``scenario`` (for the fleet's
+    shared env, one copy of the fleet: a vector env of its AUVs)."""
+    if config.env_id == FLEET_SHARED_ENV_ID:
+        return _fleet_shared(1, config, scenario)
     if config.env_id is None:
         return make_env(config.world, scenario, observation=OBSERVATION, layout_seeds=config.layout_seeds)
     import gymnasium as gym
@@ -589,7 +609,10 @@ def _vector_env(config: DeepConfig, scenario: Scenario) -> Any:
     """The training environment: with ``n_envs = 1`` one copy (SB3 wraps it in its
     ``Monitor`` and ``DummyVecEnv``); else ``n_envs`` copies as an SB3 ``VecEnv``, the world's
     own env stepped together by :class:`rl.vec_env.Sb3VectorEnv`, any other by
-    ``DummyVecEnv`` (the same episodes either way, copy i seeded with seed + i)."""
+    ``DummyVecEnv`` (the same episodes either way, copy i seeded with seed + i); for
+    :data:`FLEET_SHARED_ENV_ID`, the fleet's shared vector env over ``n_envs`` copies."""
+    if config.env_id == FLEET_SHARED_ENV_ID:
+        return _fleet_shared(config.n_envs, config, scenario)
     if config.n_envs == 1:
         return _make_one(config, scenario)
     if config.env_id is None:
@@ -660,25 +683,34 @@ def _silence(model: Any) -> None:
     model.set_logger(Logger(folder=None, output_formats=[]))
 
 
-def rollout_steps(config: DeepConfig) -> int:
+def rollout_steps(config: DeepConfig, scenario: Scenario | None = None) -> int:
     """Environment steps between two points where training can stop: an on-policy
-    algorithm's rollout (``n_envs * n_steps``), one step of every copy otherwise."""
+    algorithm's rollout (``n_envs * n_steps``), one step of every copy otherwise. On the
+    fleet's shared env (:data:`FLEET_SHARED_ENV_ID`) every AUV of every copy steps, so the
+    ``scenario`` (its ``n_auvs``) is needed."""
     cls = _algorithm_class(config.algorithm)
     from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
+    copies = config.n_envs
+    if config.env_id == FLEET_SHARED_ENV_ID:
+        if scenario is None:
+            raise ConfigError(f"the rollout of {FLEET_SHARED_ENV_ID} depends on the scenario's n_auvs: give the "
+                              "scenario", "scenario")
+        copies *= int(scenario.n_auvs)
     if issubclass(cls, OnPolicyAlgorithm):
         n_steps = config.hyperparams.get("n_steps", inspect.signature(cls.__init__).parameters["n_steps"].default)
-        return config.n_envs * int(n_steps)
-    return config.n_envs
+        return copies * int(n_steps)
+    return copies
 
 
-def checkpoint_exact(config: DeepConfig, steps: int) -> bool:
-    """Whether the model a run of ``config`` holds after ``steps`` steps is, bit for bit,
-    the model of the same run with ``timesteps = steps``: true when ``steps`` ends a rollout
-    and nothing in the algorithm depends on the total (PPO, MaskablePPO, SAC and
-    :class:`StepDQN` with constant schedules; not SB3's own DQN, whose exploration decays
-    over a share of the total)."""
-    if steps % rollout_steps(config) or steps > config.timesteps:
+def checkpoint_exact(config: DeepConfig, steps: int, scenario: Scenario | None = None) -> bool:
+    """Whether the model a run of ``config`` (on ``scenario``, which the fleet's shared env
+    needs: :func:`rollout_steps`) holds after ``steps`` steps is, bit for bit, the model of
+    the same run with ``timesteps = steps``: true when ``steps`` ends a rollout and nothing
+    in the algorithm depends on the total (PPO, MaskablePPO, SAC and :class:`StepDQN` with
+    constant schedules; not SB3's own DQN, whose exploration decays over a share of the
+    total)."""
+    if steps % rollout_steps(config, scenario) or steps > config.timesteps:
         return False
     cls = _algorithm_class(config.algorithm)
     from stable_baselines3 import DQN
@@ -997,11 +1029,11 @@ def train_or_load_deep(
                   n_envs=n_envs, env_id=env_id, env_kwargs=env_kwargs)
     savers = {}
     for steps in sorted(set(int(s) for s in checkpoints) - {config.timesteps}):
-        if not checkpoint_exact(config, steps):
+        if not checkpoint_exact(config, steps, scenario):
             raise ConfigError(
                 f"checkpoint at {steps} steps: a {algorithm} run stopped there is not the run of {steps} steps "
-                f"(it must end a rollout of {rollout_steps(config)} steps and the algorithm must not depend on "
-                "the total)", "checkpoints")
+                f"(it must end a rollout of {rollout_steps(config, scenario)} steps and the algorithm must not "
+                "depend on the total)", "checkpoints")
         savers[steps] = _checkpoint_saver(directory, config.replace(timesteps=steps), scenario)
     with _exclusive(path.with_name(path.name + ".lock")):
         found, note = find_model([directory, *pretrained], config, scenario)

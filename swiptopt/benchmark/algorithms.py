@@ -421,11 +421,12 @@ def deep_hyperparams(settings: dict[str, Any]) -> dict[str, Any]:
 
 
 def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int, context: BuildContext,
-              fleet: bool = False) -> tuple[Any, int, dict[str, Any]]:
+              fleet: bool = False, shared: bool = False) -> tuple[Any, int, dict[str, Any]]:
     """The training run behind a deep-RL task: the scenario it trains on, its seed and the
     keyword arguments of :func:`rl.deep.train_deep` (the training layouts, the world, the
     SB3 arguments, the copies, the environment; with ``fleet``, the fleet's stop-choice
-    environment on the task's scenario, its ``n_auvs`` included)."""
+    environment on the task's scenario, its ``n_auvs`` included; with ``shared``, the
+    fleet's parameter-shared vector env, :data:`rl.deep.FLEET_SHARED_ENV_ID`)."""
     scenario = context.scenario
     layouts = None
     if settings.get(TRAINING) == ACROSS_LAYOUTS:
@@ -436,6 +437,10 @@ def _deep_run(sb3: str, stops: bool, settings: dict[str, Any], seed: int, contex
         scenario = scenario.replace(layout_seed=layouts[0])
         seed = context.seed_index  # one model per training seed, whichever layout it is evaluated on
     env_id, env_kwargs = None, {}
+    if shared:
+        from rl.deep import FLEET_SHARED_ENV_ID
+
+        env_id = FLEET_SHARED_ENV_ID
     if stops:
         from planners.stops import FLEET_STOP_ENV_ID, STOP_ENV_IDS
 
@@ -457,12 +462,12 @@ def _deep_config(sb3: str, settings: dict[str, Any], seed: int, arguments: dict[
                       arguments["env_kwargs"])
 
 
-def _deep_model(sb3: str, stops: bool = False,
-                fleet: bool = False) -> Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]]:
+def _deep_model(sb3: str, stops: bool = False, fleet: bool = False,
+                shared: bool = False) -> Callable[[dict[str, Any], int, BuildContext], tuple[Any, Any]]:
     """An algorithm's ``trained_model``: the configuration and scenario of a task's model."""
 
     def model(settings: dict[str, Any], seed: int, context: BuildContext) -> tuple[Any, Any]:
-        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context, fleet)
+        scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context, fleet, shared)
         return _deep_config(sb3, settings, seed, arguments), scenario
 
     return model
@@ -496,6 +501,24 @@ def _writable(directory: str) -> bool:
     return os.access(path, os.W_OK | os.X_OK)
 
 
+def _train_or_load(sb3: str, scenario: Any, settings: dict[str, Any], seed: int, context: BuildContext,
+                   arguments: dict[str, Any]) -> Any:
+    """The trained model of a deep-RL task (:func:`_deep_run`): trained in the task without a
+    models directory; else loaded from it (or from the pretrained directories) or trained
+    and kept there, saving the lineage's shorter budgets on the way (``context.checkpoints``,
+    those that are exact); a directory this process cannot write is only read."""
+    from rl.deep import checkpoint_exact, train_deep, train_or_load_deep
+
+    if context.models_dir is None:
+        return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
+    config = _deep_config(sb3, settings, seed, arguments)
+    if not _writable(context.models_dir):
+        return _load_unlocked([context.models_dir, *context.pretrained], config, scenario)
+    checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps, scenario)]
+    return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
+                              checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
+
+
 def _deep(sb3: str, stops: bool = False,
           fleet: bool = False) -> Callable[[Any, dict[str, Any], int, BuildContext], Any]:
     """Train (or load) the SB3 algorithm ``sb3`` (``"ppo"``, ``"dqn"`` or a class path); with
@@ -505,19 +528,8 @@ def _deep(sb3: str, stops: bool = False,
     fleet env by :class:`planners.stops.FleetStopChoicePolicy`."""
 
     def build(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-        from rl.deep import checkpoint_exact, train_deep, train_or_load_deep
-
         scenario, seed, arguments = _deep_run(sb3, stops, settings, seed, context, fleet)
-        if context.models_dir is None:
-            result = train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
-        elif not _writable(context.models_dir):
-            config = _deep_config(sb3, settings, seed, arguments)
-            result = _load_unlocked([context.models_dir, *context.pretrained], config, scenario)
-        else:
-            config = _deep_config(sb3, settings, seed, arguments)
-            checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps)]
-            result = train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
-                                        checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
+        result = _train_or_load(sb3, scenario, settings, seed, context, arguments)
         if not stops:
             return result
         from planners.stops import FleetStopChoiceEnv, FleetStopChoicePolicy, StopChoicePolicy, make_stop_env
@@ -698,21 +710,16 @@ _SHARED_PPO = {
 
 
 def _shared_ppo(env: Any, settings: dict[str, Any], seed: int, context: BuildContext) -> Any:
-    """PPO with one policy shared by every AUV (:mod:`rl.fleet`), trained in the task on the
-    task's layout with the task's seed, then acting for each AUV on its own observation."""
-    from rl.deep import train_deep
-    from rl.fleet import SharedPolicy, make_shared_vec_env
+    """PPO with one policy shared by every AUV (:mod:`rl.fleet`), trained on the task's
+    layout with the task's seed (or loaded from the models directory, as every deep-RL
+    model: :func:`_train_or_load`), then acting for each AUV on its own observation."""
+    from rl.fleet import SharedPolicy
 
-    venv = make_shared_vec_env(settings["n_envs"], context.scenario)
-    result = train_deep("ppo", venv, settings["timesteps"], seed, hyperparams=deep_hyperparams(settings),
-                        policy_kwargs={"net_arch": list(settings["net_arch"])})
+    scenario, seed, arguments = _deep_run("ppo", False, settings, seed, context, shared=True)
+    result = _train_or_load("ppo", scenario, settings, seed, context, arguments)
     policy = SharedPolicy(result.model)
-    policy.train_seconds = result.train_seconds
+    policy.result = result  # what _deep_record reads
     return policy
-
-
-def _shared_ppo_record(policy: Any, env: Any) -> dict[str, Any]:
-    return {"train_seconds": getattr(policy, "train_seconds", None)}
 
 
 #: The fleet's stop-choosing PPO: the single agent's settings, ``timesteps`` counting every
@@ -743,8 +750,9 @@ def _fleet_algorithms() -> tuple[Algorithm, ...]:
                   declared(FleetRoutingPlanner, skip=("seed",), k={"hi_of": _n_nodes, "hi_doc": "n_nodes"}),
                   _planner("FleetRoutingPlanner", seeded=True, module="planners.fleet"), _fleet_routing_record,
                   fleet=True),
-        Algorithm("shared_ppo", "parameter-shared PPO", "rl", _SHARED_PPO, _shared_ppo, _shared_ppo_record,
-                  observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True),
+        Algorithm("shared_ppo", "parameter-shared PPO", "rl", _SHARED_PPO, _shared_ppo, _deep_record,
+                  observation="vector", modules=_DEEP_MODULES, trains_model=True, fleet=True,
+                  trained_model=_deep_model("ppo", shared=True)),
         Algorithm("fleet_stop_ppo", "stop-choosing PPO (fleet)", "rl", _FLEET_STOP_PPO,
                   _deep("maskable_ppo", stops=True, fleet=True), _deep_record, modules=(*_DEEP_MODULES, "sb3_contrib"),
                   trains_model=True, fleet=True, trained_model=_deep_model("maskable_ppo", True, True)),

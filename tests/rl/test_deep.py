@@ -206,6 +206,36 @@ def test_a_checkpoint_is_the_model_of_the_shorter_run(tmp_path):
         np.testing.assert_array_equal(value, _parameters(short_dqn.model)[key])
 
 
+def test_the_fleets_shared_env_trains_like_the_vector_env_given_and_keeps_exact_checkpoints(tmp_path):
+    """Parameter-shared PPO through :data:`rl.deep.FLEET_SHARED_ENV_ID` (so its models are kept
+    by hash and checkpointed like every deep model) trains the very model of the same PPO
+    handed the fleet's shared vector env; its rollout counts every AUV of every copy, and a
+    checkpoint at a rollout's end is the shorter run's model."""
+    pytest.importorskip("pettingzoo")
+    from rl.deep import FLEET_SHARED_ENV_ID, DeepConfig, rollout_steps
+    from rl.fleet import make_shared_vec_env
+
+    fleet = swiptopt.Scenario.preset("paper", n_nodes=8, n_auvs=2, episode_steps=20)
+    hp = {"n_steps": 32, "batch_size": 64, "n_epochs": 2, "ent_coef": 0.01}
+    kwargs = dict(hyperparams=hp, policy_kwargs=NET, n_envs=2, env_id=FLEET_SHARED_ENV_ID)
+    given = train_deep("ppo", make_shared_vec_env(2, fleet), 512, 3, hyperparams=hp, policy_kwargs=NET)
+    named = train_or_load_deep(tmp_path, "ppo", fleet, 512, 3, checkpoints=[256], **kwargs)
+    for key, value in _parameters(given.model).items():
+        np.testing.assert_array_equal(value, _parameters(named.model)[key])
+    config = DeepConfig("ppo", 512, 3, hp, NET, n_envs=2, env_id=FLEET_SHARED_ENV_ID)
+    assert rollout_steps(config, fleet) == 32 * 2 * 2
+    with pytest.raises(swiptopt.ConfigError, match="n_auvs"):
+        rollout_steps(config)
+    short = train_or_load_deep(tmp_path, "ppo", fleet, 256, 3, **kwargs)
+    assert short.loaded and not named.loaded
+    for key, value in _parameters(train_deep("ppo", fleet, 256, 3, **kwargs).model).items():
+        np.testing.assert_array_equal(value, _parameters(short.model)[key])
+    with pytest.raises(swiptopt.ConfigError, match="checkpoint at 192 steps"):  # not the end of a rollout of 128
+        train_or_load_deep(tmp_path, "ppo", fleet, 512, 3, checkpoints=[192], **kwargs)
+    with pytest.raises(swiptopt.ConfigError, match="layout_seeds must be None"):
+        train_deep("ppo", fleet, 256, 3, layout_seeds=[0, 1], **kwargs)
+
+
 def test_a_training_reports_its_progress_and_trains_the_same_model(monkeypatch):
     import rl.deep
 

@@ -82,23 +82,28 @@ def test_the_fleet_suite_runs_quick_and_gives_the_same_table_twice(tmp_path):
                for r in twos for rec in r["records"])
 
 
-def test_a_fleet_curve_trains_once_and_its_checkpoint_plays_like_the_run_of_its_length(tmp_path):
-    """The fleet's stop-choosing PPO keeps its models as the single agents do: a learning
-    curve trains one run per lineage, and the shorter budget's row, from that run's
-    checkpoint, is the row of a run of that length alone."""
+@pytest.mark.parametrize(("algorithm", "budgets"), [
+    ("fleet_stop_ppo", [64, 128]),  # a rollout: 32 decisions of 2 copies
+    ("shared_ppo", [128, 256]),  # a rollout: 32 steps of 2 AUVs of 2 copies
+])
+def test_a_fleet_curve_trains_once_and_its_checkpoint_plays_like_the_run_of_its_length(tmp_path, algorithm,
+                                                                                        budgets):
+    """The fleet's stop-choosing PPO and parameter-shared PPO keep their models as the single
+    agents do: a learning curve trains one run per lineage, and the shorter budget's row,
+    from that run's checkpoint, is the row of a run of that length alone."""
     tiny = {"n_steps": 32, "batch_size": 32, "net_arch": [16], "n_envs": 2, "n_epochs": 1}
 
     def fleet_curve(budgets: list[int]) -> Experiment:
-        return Experiment(name="c", scenario={**SMALL, "n_auvs": 2}, algorithms={"fleet_stop_ppo": tiny},
-                          budgets={"fleet_stop_ppo": budgets}, layouts=1, episodes=2)
+        return Experiment(name="c", scenario={**SMALL, "n_auvs": 2}, algorithms={algorithm: tiny},
+                          budgets={algorithm: budgets}, layouts=1, episodes=2)
 
-    both, alone = fleet_curve([64, 128]), fleet_curve([64])
+    both, alone = fleet_curve(budgets), fleet_curve(budgets[:1])
     trained = []
     with ResultStore(tmp_path / "a" / "s.sqlite") as store:
         assert execute(both, store, workers=1,
                        on_training=lambda task, steps, total, done: trained.append((task.budget, total))).failures == ()
         a = store.get(t.key for t in both.tasks())
-    assert {total for _, total in trained} == {128}  # one training, the lineage's longest
+    assert {total for _, total in trained} == {budgets[-1]}  # one training, the lineage's longest
     with ResultStore(tmp_path / "b" / "s.sqlite") as store:
         execute(alone, store, workers=1)
         b = store.get(t.key for t in alone.tasks())
