@@ -936,9 +936,9 @@ _FLEET_LAYOUTS = 4
 #: its learning curves' plateaus on the suite's field (flat from 65,536 with one AUV, 131,072
 #: with two and 262,144 with four: benchmarks/learning-curve-fleet-stop-ppo*.toml);
 #: parameter-shared PPO's AUV steps where its curve with four AUVs has risen from 32.21 to
-#: 43.12 (benchmarks/learning-curve-fleet-shared-ppo.toml). It still rises at 2,097,152
-#: (50.65), which the suite's time cannot afford for every fleet size, so that row is a
-#: lower estimate.
+#: 43.12 (benchmarks/learning-curve-fleet-shared-ppo.toml). It rises to 50.65 at 2,097,152
+#: and flattens at 4,194,304 (55.70), which the suite's time cannot afford for every fleet
+#: size, so its rows are lower estimates.
 FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 1_048_576}
 #: Independent Q-learning's training episodes in the fleet suite and in fleet-optimum: the
 #: end of its learning curves, flat from 20,000 episodes on the suite's field with 1, 2 and 4

@@ -339,8 +339,8 @@ _FLEET_TWO_ROWS = {"stop-choosing PPO (fleet)": "131,072: 47.66 ± 1.72; 262,144
                                                 "0.98× [0.90–1.05] 1/4 (k-means + vehicle routing)"}
 _FLEET_ONE_ROWS = {"stop-choosing PPO (fleet)": "131,072: 30.79 ± 2.75; 262,144: 31.48 ± 3.88 | yes | 65,536 | "
                                                 "1.20× [1.12–1.27] 4/4 (k-means + vehicle routing)"}
-_FLEET_SHARED_ROWS = {"parameter-shared PPO": "1,048,576: 43.12 ± 0.99; 2,097,152: 50.65 ± 11.05 | no | 2,097,152 | "
-                                             "0.61× [0.55–0.66] 0/4 (k-means + vehicle routing)"}
+_FLEET_SHARED_ROWS = {"parameter-shared PPO": "2,097,152: 50.65 ± 11.05; 4,194,304: 55.70 ± 11.26 | yes | 2,097,152 | "
+                                             "0.67× [0.61–0.72] 0/4 (k-means + vehicle routing)"}
 _FLEET_OPTIMUM_ONE_ROWS = {
     "stop-choosing PPO (fleet)": "131,072: 9.85 ± 2.87; 262,144: 9.86 ± 2.76 | yes | 32,768 | "
                                  "0.89× [0.83–0.92] 0/4 (MILP (fleet))",
