@@ -286,6 +286,8 @@ _FLEET_LEARNERS = ("fleet_stop_ppo", "shared_ppo")
     ("learning-curve-fleet-stop-ppo-two.toml", "fleet", ["fleet_stop_ppo"], 2),
     ("learning-curve-fleet-stop-ppo-one.toml", "fleet", ["fleet_stop_ppo"], 1),
     ("learning-curve-fleet-shared-ppo.toml", "fleet", ["shared_ppo"], 4),
+    ("learning-curve-fleet-shared-ppo-two.toml", "fleet", ["shared_ppo"], 2),
+    ("learning-curve-fleet-shared-ppo-one.toml", "fleet", ["shared_ppo"], 1),
     ("learning-curve-fleet-optimum-one.toml", "fleet-optimum", _FLEET_LEARNERS, 1),
     ("learning-curve-fleet-optimum-two.toml", "fleet-optimum", _FLEET_LEARNERS, 2),
     ("learning-curve-fleet-q-learning-one.toml", "fleet", ["fleet_q_learning"], 1),
@@ -341,6 +343,9 @@ _FLEET_ONE_ROWS = {"stop-choosing PPO (fleet)": "131,072: 30.79 ± 2.75; 262,144
                                                 "1.20× [1.12–1.27] 4/4 (k-means + vehicle routing)"}
 _FLEET_SHARED_ROWS = {"parameter-shared PPO": "2,097,152: 50.65 ± 11.05; 4,194,304: 55.70 ± 11.26 | yes | 2,097,152 | "
                                              "0.67× [0.61–0.72] 0/4 (k-means + vehicle routing)"}
+_FLEET_SHARED_TWO_ROWS = {
+    "parameter-shared PPO": "2,097,152: 38.85 ± 9.54; 4,194,304: 41.01 ± 7.16 | yes | 1,048,576 | "
+                            "0.83× [0.75–0.92] 0/4 (k-means + vehicle routing)"}
 _FLEET_OPTIMUM_ONE_ROWS = {
     "stop-choosing PPO (fleet)": "131,072: 9.85 ± 2.87; 262,144: 9.86 ± 2.76 | yes | 32,768 | "
                                  "0.89× [0.83–0.92] 0/4 (MILP (fleet))",
@@ -382,6 +387,7 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-stop-ppo-two", _FLEET_TWO_ROWS),
                                                 ("learning-curve-fleet-stop-ppo-one", _FLEET_ONE_ROWS),
                                                 ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS),
+                                                ("learning-curve-fleet-shared-ppo-two", _FLEET_SHARED_TWO_ROWS),
                                                 ("learning-curve-fleet-optimum-one", _FLEET_OPTIMUM_ONE_ROWS),
                                                 ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS),
                                                 ("learning-curve-fleet-q-learning-one", _FLEET_Q_ONE_ROWS),
