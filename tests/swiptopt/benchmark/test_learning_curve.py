@@ -346,6 +346,9 @@ _FLEET_SHARED_ROWS = {"parameter-shared PPO": "2,097,152: 50.65 ± 11.05; 4,194,
 _FLEET_SHARED_TWO_ROWS = {
     "parameter-shared PPO": "2,097,152: 38.85 ± 9.54; 4,194,304: 41.01 ± 7.16 | yes | 1,048,576 | "
                             "0.83× [0.75–0.92] 0/4 (k-means + vehicle routing)"}
+_FLEET_SHARED_ONE_ROWS = {
+    "parameter-shared PPO": "1,048,576: 23.60 ± 5.96; 2,097,152: 26.53 ± 7.29 | yes | 524,288 | "
+                            "1.01× [0.88–1.13] 3/4 (k-means + vehicle routing)"}
 _FLEET_OPTIMUM_ONE_ROWS = {
     "stop-choosing PPO (fleet)": "131,072: 9.85 ± 2.87; 262,144: 9.86 ± 2.76 | yes | 32,768 | "
                                  "0.89× [0.83–0.92] 0/4 (MILP (fleet))",
@@ -388,6 +391,7 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-stop-ppo-one", _FLEET_ONE_ROWS),
                                                 ("learning-curve-fleet-shared-ppo", _FLEET_SHARED_ROWS),
                                                 ("learning-curve-fleet-shared-ppo-two", _FLEET_SHARED_TWO_ROWS),
+                                                ("learning-curve-fleet-shared-ppo-one", _FLEET_SHARED_ONE_ROWS),
                                                 ("learning-curve-fleet-optimum-one", _FLEET_OPTIMUM_ONE_ROWS),
                                                 ("learning-curve-fleet-optimum-two", _FLEET_OPTIMUM_TWO_ROWS),
                                                 ("learning-curve-fleet-q-learning-one", _FLEET_Q_ONE_ROWS),
