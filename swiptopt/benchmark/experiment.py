@@ -935,11 +935,11 @@ _FLEET_LAYOUTS = 4
 #: The fleet suite's learners' budgets (docs/fleet.md): the stop-choosing PPO's decisions at
 #: its learning curves' plateaus on the suite's field (flat from 65,536 with one AUV, 131,072
 #: with two and 262,144 with four: benchmarks/learning-curve-fleet-stop-ppo*.toml);
-#: parameter-shared PPO's AUV steps where its curve with four AUVs has risen from 32.21 to
-#: 43.12 (benchmarks/learning-curve-fleet-shared-ppo.toml). It rises to 50.65 at 2,097,152
-#: and flattens at 4,194,304 (55.70), which the suite's time cannot afford for every fleet
-#: size, so its rows are lower estimates.
-FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 1_048_576}
+#: parameter-shared PPO's AUV steps where its curves are within 10 % of their last budgets
+#: with every fleet size (benchmarks/learning-curve-fleet-shared-ppo*.toml: flat at
+#: 2,097,152 with one AUV, at 4,194,304 with two and four, where 2,097,152 gives 0.95x and
+#: 0.91x of the last).
+FLEET_TIMESTEPS = {"fleet_stop_ppo": 262_144, "shared_ppo": 2_097_152}
 #: Independent Q-learning's training episodes in the fleet suite and in fleet-optimum: the
 #: end of its learning curves, flat from 20,000 episodes on the suite's field with 1, 2 and 4
 #: AUVs (benchmarks/learning-curve-fleet-q-learning-*.toml) and from 10,000 on the
