@@ -475,8 +475,21 @@ def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
     settings, layouts, world, copies, environment), the scenario, the observation, the
     environment's id and version, and the versions of Stable-Baselines3 (and sb3-contrib),
     torch and Gymnasium. Equal hashes mean the same trained model."""
+    return _run_hash(config.to_dict(), config, scenario)
+
+
+def lineage_hash(config: DeepConfig, scenario: Scenario) -> str:
+    """A hex SHA-256 naming a training run whatever its length: :func:`deep_config_hash`
+    without ``timesteps``. Runs of one lineage pass through the same states where
+    :func:`checkpoint_exact` holds, so a state file (:mod:`rl.resume`) is named by it."""
+    plain = config.to_dict()
+    del plain["timesteps"]
+    return _run_hash(plain, config, scenario)
+
+
+def _run_hash(plain: Mapping[str, Any], config: DeepConfig, scenario: Scenario) -> str:
     payload = {
-        "config": config.to_dict(),
+        "config": plain,
         "scenario": scenario.to_dict(),
         "observation": OBSERVATION,
         "env": _env_id(config),
@@ -510,11 +523,13 @@ def reporting_progress(report: Callable[[int, int, bool], None] | None) -> Itera
         _PROGRESS.reset(token)
 
 
-def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> tuple[Any, list[Any]]:
+def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int,
+               returns: Sequence[float] = ()) -> tuple[Any, list[Any]]:
     """SB3 callbacks: the one that collects the return of every training episode as it
-    ends, and all of them: it, a call of ``checkpoints[n]`` with the model when training
-    has reached n steps (between rollouts, where a run of n steps would have stopped), and
-    the reports of :func:`reporting_progress` if a report is set."""
+    ends (after ``returns``, those of the run so far when it resumes), and all of them: it,
+    a call of ``checkpoints[n]`` with the model when training has reached n steps (between
+    rollouts, where a run of n steps would have stopped), and the reports of
+    :func:`reporting_progress` if a report is set."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EpisodeLog(BaseCallback):
@@ -522,7 +537,7 @@ def _callbacks(checkpoints: Mapping[int, Callable[[Any], None]], total: int) -> 
 
         def __init__(self) -> None:
             super().__init__()
-            self.returns: list[float] = []
+            self.returns: list[float] = [float(r) for r in returns]
 
         def _on_step(self) -> bool:
             for info, done in zip(self.locals["infos"], self.locals["dones"]):
@@ -576,6 +591,89 @@ def _progress_callback(report: Callable[[int, int, bool], None], total: int) -> 
             report(int(self.model.num_timesteps), total, True)
 
     return Progress()
+
+
+#: Seconds of training between two saves of its state (:func:`train_deep`'s ``state_file``).
+STATE_INTERVAL_S = 600.0
+
+
+def _state_keeper(path: Path, lineage: str, log: Any, prior: Mapping[str, Any], keep_end: bool) -> Any:
+    """The SB3 callback that keeps a run's state at ``path`` (:mod:`rl.resume`): it records
+    every action sent to the environments and saves the state at the start of a rollout
+    once :data:`STATE_INTERVAL_S` seconds have passed since the last save, and (with
+    ``keep_end``) when training ends; never over a state further along its lineage.
+    ``prior``: what the run had done before it resumed (actions, times)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from rl.resume import read_state, save_state
+
+    class StateKeeper(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.actions: list[np.ndarray] = list(prior.get("actions", ()))
+            self.last = time.monotonic()
+            self.start, self.cpu = time.perf_counter(), time.process_time()
+
+        def _on_step(self) -> bool:
+            sent = self.locals.get("clipped_actions")
+            self.actions.append(np.array(self.locals["actions"] if sent is None else sent, copy=True))
+            return True
+
+        def _on_rollout_start(self) -> None:
+            if time.monotonic() - self.last >= STATE_INTERVAL_S:
+                self.save()
+
+        def _on_training_end(self) -> None:
+            if keep_end:
+                self.save()
+
+        def save(self) -> None:
+            self.last = time.monotonic()
+            steps = int(self.model.num_timesteps)
+            if path.is_file():
+                with contextlib.suppress(ConfigError):
+                    if int(read_state(path, header_only=True)[0].get("steps", -1)) >= steps:
+                        return
+            extra = {"lineage": lineage, "steps": steps, "versions": _versions(),
+                     "train_seconds": prior.get("train_seconds", 0.0) + time.perf_counter() - self.start,
+                     "cpu_seconds": prior.get("cpu_seconds", 0.0) + time.process_time() - self.cpu}
+            save_state(path, self.model, self.actions, extra, {"returns": np.asarray(log.returns, dtype=float)})
+
+    return StateKeeper()
+
+
+def _resume(model: Any, path: Path, config: DeepConfig, scenario: Scenario) -> dict[str, Any]:
+    """Put the state at ``path`` into the fresh ``model`` of ``config`` if the file holds a
+    state of its lineage no further along than ``config.timesteps``; what the run had done
+    before (``steps``, ``actions``, ``returns``, ``train_seconds``, ``cpu_seconds``), empty
+    when there is nothing to resume from. A file of another lineage or one that does not
+    restore is a :class:`~swiptopt.ConfigError` naming the file (field ``state_file``)."""
+    from rl.resume import FIELD, read_state, restore_state
+
+    if not path.is_file():
+        return {}
+    header, _ = read_state(path, header_only=True)
+    steps = header.get("steps")
+    if header.get("lineage") != lineage_hash(config, scenario) or not isinstance(steps, int):
+        raise ConfigError(f"{path} holds the state of another training run than this {config.algorithm} run's", FIELD)
+    if steps > config.timesteps:
+        return {}
+    if not checkpoint_exact(config, steps, scenario):
+        raise ConfigError(f"{path}: a {config.algorithm} run cannot go on from its state at {steps} steps "
+                          "(its training depends on its total, or the count ends no rollout)", FIELD)
+    header, arrays = read_state(path)
+    restore_state(model, header, arrays, path)
+    return {"steps": steps, "actions": list(arrays["actions"]), "returns": arrays.get("extra/returns", ()),
+            "train_seconds": float(header.get("train_seconds", 0.0)),
+            "cpu_seconds": float(header.get("cpu_seconds", 0.0))}
+
+
+def resumable(config: DeepConfig, scenario: Scenario | None = None) -> bool:
+    """Whether runs of ``config`` can keep their state and go on from it (:mod:`rl.resume`):
+    where their state after n steps is the same whatever their total
+    (:func:`checkpoint_exact` at a rollout's end)."""
+    steps = rollout_steps(config, scenario)
+    return checkpoint_exact(config.replace(timesteps=steps), steps, scenario)
 
 
 def _fleet_shared(n_copies: int, config: DeepConfig, scenario: Scenario) -> Any:
@@ -734,6 +832,8 @@ def train_deep(
     env_id: str | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
     checkpoints: Mapping[int, Callable[[Any], None]] | None = None,
+    state_file: str | Path | None = None,
+    keep_state: bool = True,
 ) -> DeepResult:
     """Train ``algorithm`` (:data:`DEEP_ALGORITHMS`) for ``timesteps`` environment steps.
 
@@ -747,18 +847,34 @@ def train_deep(
     functions called with the model when training reaches them (between rollouts). Inside
     :func:`reporting_progress` it reports how far it has trained. The same arguments give
     the same model, bit for bit (see the module docstring).
+
+    ``state_file`` (training on a Scenario, where :func:`resumable`): the run keeps its
+    state there (:mod:`rl.resume`; every :data:`STATE_INTERVAL_S` seconds, and at its end
+    with ``keep_state``), and if the file holds a state of the same run, or of a run of the
+    same lineage (:func:`lineage_hash`) at most ``timesteps`` long, training goes on from
+    it: the model is the uninterrupted run's, bit for bit, and its ``episode_returns`` and
+    times cover the whole run. A file that holds another run's state, or one that does not
+    restore, is a :class:`~swiptopt.ConfigError` (field ``state_file``); nothing is trained.
     """
     config = DeepConfig(algorithm, timesteps, seed, hyperparams or {}, policy_kwargs or {}, layout_seeds, world,
                         n_envs, env_id, env_kwargs or {})
     config.check_hyperparams()
     pin_torch()
     env, scenario = _training_env(scenario_or_env, config)
+    if state_file is not None and (scenario is None or not resumable(config, scenario)):
+        how = "on an environment given as such" if scenario is None else "with these settings"
+        raise ConfigError(f"state_file: a {config.algorithm} run {how} cannot go on from a saved state (it needs a "
+                          "Scenario, and training that does not depend on its total)", "state_file")
     model = _new_model(config, env, scenario)
     _silence(model)
-    log, callbacks = _callbacks(checkpoints or {}, config.timesteps)
+    prior = {} if state_file is None else _resume(model, Path(state_file), config, scenario)
+    log, callbacks = _callbacks(checkpoints or {}, config.timesteps, prior.get("returns", ()))
+    if state_file is not None:
+        callbacks.append(_state_keeper(Path(state_file), lineage_hash(config, scenario), log, prior, keep_state))
     start, cpu = time.perf_counter(), time.process_time()
     try:
-        model.learn(total_timesteps=config.timesteps, callback=callbacks, progress_bar=False)
+        model.learn(total_timesteps=config.timesteps - prior.get("steps", 0), callback=callbacks, progress_bar=False,
+                    reset_num_timesteps=not prior)
     except (ValueError, RuntimeError, UnboundLocalError) as exc:  # settings SB3 accepted but cannot train with
         raise ConfigError(f"{config.algorithm} failed to train with its settings: {type(exc).__name__}: {_short(exc)}",
                           "hyperparams") from None
@@ -766,9 +882,9 @@ def train_deep(
         model=model,
         config=config,
         config_hash=None if scenario is None else deep_config_hash(config, scenario),
-        train_seconds=time.perf_counter() - start,
+        train_seconds=prior.get("train_seconds", 0.0) + time.perf_counter() - start,
         episode_returns=np.asarray(log.returns, dtype=float),
-        cpu_seconds=time.process_time() - cpu,
+        cpu_seconds=prior.get("cpu_seconds", 0.0) + time.process_time() - cpu,
     )
 
 
@@ -1005,6 +1121,7 @@ def train_or_load_deep(
     env_kwargs: Mapping[str, Any] | None = None,
     checkpoints: Sequence[int] = (),
     pretrained: Sequence[str | Path] = (),
+    keep_state: bool = False,
 ) -> DeepResult:
     """:func:`train_deep`, reusing a stored model of the same configuration when there is one.
 
@@ -1016,6 +1133,14 @@ def train_or_load_deep(
     smaller step counts at which the run also saves its model, each under the name of the
     run of that many steps (only counts where that model is the same, bit for bit:
     :func:`checkpoint_exact`; others are refused).
+
+    A run that can go on from a saved state (:func:`resumable`) keeps its state in
+    ``directory`` while it trains (:func:`state_path`, every :data:`STATE_INTERVAL_S`
+    seconds), so that a run cut short (a crash, the end of a session) goes on from its last
+    state when asked again, to the same model; a state of a shorter run of the same lineage
+    (kept with ``keep_state``, which keeps the run's state at its end) is gone on from too,
+    when every checkpoint it passed is in ``directory``. A state that cannot be used is
+    deleted and the run trains from the start, the result's ``note`` saying why.
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
@@ -1045,10 +1170,86 @@ def train_or_load_deep(
             else:
                 return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found,
                                   sha256=file_sha256(found), note=note)
-        result = train_deep(algorithm, scenario, timesteps, seed, checkpoints=savers, **kwargs)
+        result, trained_note = _train_resuming(directory, config, scenario, savers, keep_state, kwargs)
+        note = "; ".join(filter(None, [note, trained_note]))
         digest = _save_recorded(directory, path, result.model, config, key)
     why = f"retrained: {note}" if note else ""
     return dataclasses.replace(result, config_hash=key, note=why, path=path, sha256=digest)
+
+
+def _train_resuming(directory: Path, config: DeepConfig, scenario: Scenario, savers: Mapping[int, Any],
+                    keep_state: bool, kwargs: Mapping[str, Any]) -> tuple[DeepResult, str]:
+    """:func:`train_deep` for :func:`train_or_load_deep`, keeping the run's state in
+    ``directory`` where it can (:func:`resumable`) and going on from a state found there;
+    a state it cannot use is deleted and the run trains from the start. Returns the result
+    and what happened to an unusable state ("" if nothing did)."""
+    state = state_path(directory, config, scenario) if resumable(config, scenario) else None
+    note = _check_state(state, directory, config, scenario, savers)
+
+    def train() -> DeepResult:
+        return train_deep(config.algorithm, scenario, config.timesteps, config.seed, checkpoints=savers,
+                          state_file=state, keep_state=keep_state, **kwargs)
+
+    try:
+        result = train()
+    except ConfigError as exc:
+        if exc.field != "state_file" or state is None:
+            raise
+        state.unlink(missing_ok=True)
+        note = "; ".join(filter(None, [note, f"trained from the start: {exc}"]))
+        result = train()
+    if state is not None and not keep_state:
+        _drop_state(state, config.timesteps)
+    return result, note
+
+
+def state_path(directory: str | Path, config: DeepConfig, scenario: Scenario) -> Path:
+    """Where :func:`train_or_load_deep` keeps the state of a run of ``config`` while it
+    trains (:mod:`rl.resume`): ``directory/<algorithm>-<lineage_hash>.state.npz``, one file
+    for every run of its lineage."""
+    from rl.resume import STATE_SUFFIX
+
+    return Path(directory) / f"{_file_stem(config.algorithm)}-{lineage_hash(config, scenario)}{STATE_SUFFIX}"
+
+
+def _state_steps(state: Path) -> int | None:
+    """The step count of the state at ``state``; None when there is none or it is unreadable."""
+    from rl.resume import read_state
+
+    if not state.is_file():
+        return None
+    try:
+        steps = read_state(state, header_only=True)[0].get("steps")
+    except ConfigError:
+        return None
+    return steps if isinstance(steps, int) else None
+
+
+def _check_state(state: Path | None, directory: Path, config: DeepConfig, scenario: Scenario,
+                 savers: Mapping[int, Any]) -> str:
+    """Delete a state file :func:`train_or_load_deep` must not go on from, saying why ("" if
+    it may, or there is none): unreadable, or past checkpoints whose models are not in
+    ``directory`` (going on would never save them)."""
+    if state is None or not state.is_file():
+        return ""
+    steps = _state_steps(state)
+    if steps is None:
+        state.unlink(missing_ok=True)
+        return f"{state.name} was not a readable training state: trained from the start"
+    missing = [n for n in savers
+               if n < steps and find_model([directory], config.replace(timesteps=n), scenario)[0] is None]
+    if missing and steps <= config.timesteps:
+        state.unlink(missing_ok=True)
+        return (f"{state.name} is past the checkpoint at {min(missing)} steps, whose model is not in {directory}: "
+                "trained from the start")
+    return ""
+
+
+def _drop_state(state: Path, timesteps: int) -> None:
+    """Delete the state a finished run kept, unless it is a longer run's."""
+    steps = _state_steps(state)
+    if steps is None or steps <= timesteps:
+        state.unlink(missing_ok=True)
 
 
 def _save_recorded(directory: Path, path: Path, model: Any, config: DeepConfig, key: str) -> str:

@@ -131,9 +131,13 @@ _OPTIONS = {
     "retrain": click.option("--retrain", is_flag=True,
                             help="Train every deep-RL model here instead of reusing the models shipped with "
                                  "swiptopt (models in the store's own models/ are still reused)."),
+    "keep_state": click.option("--keep-state", is_flag=True,
+                               help="Keep the state of each lineage's longest deep-RL training at its end in the "
+                                    "store's models/ (hundreds of MB for SAC and DQN: their replay buffers), so that "
+                                    "a longer budget added later goes on from it instead of from the start."),
 }
 #: What compare and run take: every option of a run and of its printed tables.
-_RUN_OPTIONS = ("quick", "store", "workers", "scheduler", "format", "output", "retrain")
+_RUN_OPTIONS = ("quick", "store", "workers", "scheduler", "format", "output", "retrain", "keep_state")
 
 
 def _options(*names: str):  # type: ignore[no-untyped-def]
@@ -244,7 +248,7 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
 
 
 def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
-                    caption=False, retrain=False) -> None:
+                    caption=False, retrain=False, keep_state=False) -> None:
     """Run the experiments one after the other into one store, print each one's tables as
     it finishes (``caption``: each under its name and world, also in
     the text formats), and write them all to ``output``."""
@@ -267,7 +271,8 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
         for experiment in experiments:
             with _run_status(console, experiment.name) as (on_progress, on_training):
                 report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=on_progress,
-                                 on_training=on_training, pretrained=_pretrained(retrain), client=client)
+                                 on_training=on_training, pretrained=_pretrained(retrain), client=client,
+                                 keep_state=keep_state)
             failed = f", {report.failed} failed" if report.failed else ""
             console.print(
                 f"{report.total} tasks: {report.cached} already stored, {report.ran} run{failed} in "
@@ -375,7 +380,8 @@ class _DescribesSuite(click.Command):
 @click.option("--suite", type=click.Choice(list(SUITES)), default="all", show_default=True,
               help="standard: the paper's grid world; harbour: the continuous world around obstacles; all: both.")
 @_with_run_options
-def compare(suite, quick, store_path, workers, scheduler, fmt, output, retrain) -> None:  # type: ignore[no-untyped-def]
+def compare(suite, quick, store_path, workers, scheduler, fmt, output, retrain,  # type: ignore[no-untyped-def]
+            keep_state) -> None:
     """Every algorithm on the standard suite (the paper's grid world) and on the harbour
     suite (the continuous world), a table each (the main job).
 
@@ -387,7 +393,7 @@ def compare(suite, quick, store_path, workers, scheduler, fmt, output, retrain) 
 
     builtins = builtin_experiments()
     _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output,
-                    caption=True, retrain=retrain)
+                    caption=True, retrain=retrain, keep_state=keep_state)
 
 
 def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -406,7 +412,7 @@ def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) ->
 @_with_run_options
 @_allow_plugins_option
 def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # type: ignore[no-untyped-def]
-        allow_plugins) -> None:
+        keep_state, allow_plugins) -> None:
     """Run a built-in experiment (by NAME) or a TOML experiment file and print its table.
 
     A file's [plugins] run code from outside swiptopt: they are refused unless
@@ -415,7 +421,7 @@ def run(spec, quick, store_path, workers, scheduler, fmt, output, retrain,  # ty
 
     experiments = load_experiments(spec, allow_plugins=allow_plugins)
     _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output, caption=len(experiments) > 1,
-                    retrain=retrain)
+                    retrain=retrain, keep_state=keep_state)
 
 
 @cli.command()

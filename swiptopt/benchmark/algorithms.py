@@ -141,6 +141,9 @@ class BuildContext:
     saves its model (for the tasks that will load it)."""
     pretrained: tuple[str, ...] = ()
     """Read-only directories of models trained elsewhere, each vouched for by its manifest."""
+    keep_state: bool = False
+    """Whether the task's training keeps its state at its end in ``models_dir`` (so that a
+    longer run of its lineage goes on from it: :func:`rl.deep.train_or_load_deep`)."""
 
 
 @dataclass(frozen=True)
@@ -516,7 +519,8 @@ def _train_or_load(sb3: str, scenario: Any, settings: dict[str, Any], seed: int,
         return _load_unlocked([context.models_dir, *context.pretrained], config, scenario)
     checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps, scenario)]
     return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
-                              checkpoints=checkpoints, pretrained=context.pretrained, **arguments)
+                              checkpoints=checkpoints, pretrained=context.pretrained, keep_state=context.keep_state,
+                              **arguments)
 
 
 def _deep(sb3: str, stops: bool = False,

@@ -102,6 +102,10 @@ CHECKPOINTS = "checkpoints"
 #: The key of a task dict that holds read-only directories of models trained elsewhere,
 #: each vouched for by its manifest (:func:`rl.deep.train_or_load_deep`'s ``pretrained``).
 PRETRAINED = "pretrained"
+#: The key of a task dict that asks its training to keep its state at its end in the models
+#: directory (:func:`rl.deep.train_or_load_deep`'s ``keep_state``), so that a longer budget
+#: of its lineage goes on from there (not part of the task).
+KEEP_STATE = "keep_state"
 
 
 def _split(task: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
@@ -110,12 +114,14 @@ def _split(task: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
     task = dict(task)
     task.pop(CHECKPOINTS, None)
     task.pop(PRETRAINED, None)
+    task.pop(KEEP_STATE, None)
     return task, task.pop(MODELS_DIR, None)
 
 
-def _routing(task: dict[str, Any]) -> tuple[tuple[int, ...], tuple[str, ...]]:
-    """A task dict's checkpoints and pretrained model directories."""
-    return tuple(task.get(CHECKPOINTS, ())), tuple(task.get(PRETRAINED, ()))
+def _routing(task: dict[str, Any]) -> tuple[tuple[int, ...], tuple[str, ...], bool]:
+    """A task dict's checkpoints, pretrained model directories and whether its training
+    keeps its state at its end."""
+    return tuple(task.get(CHECKPOINTS, ())), tuple(task.get(PRETRAINED, ())), bool(task.get(KEEP_STATE, False))
 
 
 # ------------------------------------------------------------------------ one task
@@ -132,14 +138,15 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     from swiptopt.worlds import GRID, make_env
 
     start = time.perf_counter()
-    checkpoints, pretrained = _routing(task)
+    checkpoints, pretrained, keep_state = _routing(task)
     task, models_dir = _split(task)
     t = Task(**task)
     algorithm = get_algorithm(t.algorithm, t.plugin)  # registers a plugin in this process
     scenario = Scenario.from_dict(t.scenario)
     grid = t.world == GRID
     training = tuple(t.training_layouts) if t.training_layouts is not None else None
-    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world, checkpoints, pretrained)
+    context = BuildContext(scenario, t.seed % SEEDS_PER_LAYOUT, training, models_dir, t.world, checkpoints, pretrained,
+                           keep_state)
     if algorithm.fleet:
         return _run_fleet_task(t, task, algorithm, context, start)
     # the continuous world has one observation (the vector); planners read the env itself
@@ -639,14 +646,15 @@ def _lineage_of(task: Task) -> tuple[Any, ...] | None:
 
 
 def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
-             pretrained: tuple[str, ...] = ()) -> list[list[list[dict[str, Any]]]]:
+             pretrained: tuple[str, ...] = (), keep_state: bool = False) -> list[list[list[dict[str, Any]]]]:
     """The tasks as stages of batches of task dicts, each stage run to its end before the
     next starts. First, one task per training lineage (:func:`_lineage_of`), its longest
     budget, each alone and the longest first (so the workers train different models at once
     and the longest work starts first), told to save its model at the lineage's other
     budgets; beside them every task that trains nothing. Then the lineages' other tasks,
     which load those models. Batches hold at most 4 tasks (at least ~8 per worker for load
-    balance) so a killed run loses little."""
+    balance) so a killed run loses little. With ``keep_state`` each lineage's trainer keeps
+    its training state at its end (:data:`KEEP_STATE`)."""
     lineages: dict[tuple[Any, ...], list[Task]] = {}
     plain: list[Task] = []
     for t in tasks:
@@ -664,7 +672,8 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
         members = sorted(members, key=lambda t: -int(t.settings.get("timesteps", 0)))
         longest = int(members[0].settings.get("timesteps", 0))
         budgets = sorted({int(t.settings.get("timesteps", 0)) for t in members[1:]} - {longest})
-        trainers.append({**members[0].to_dict(), **extra, CHECKPOINTS: budgets})
+        keep = {KEEP_STATE: True} if keep_state else {}
+        trainers.append({**members[0].to_dict(), **extra, CHECKPOINTS: budgets, **keep})
         followers += members[1:]
     trainers.sort(key=lambda d: -int(d["settings"].get("timesteps", 0)))
 
@@ -714,6 +723,7 @@ def execute(
     pretrained: tuple[str, ...] | list[str] = (),
     client: Any = None,
     on_training: Callable[[Task, int, int, bool], None] | None = None,
+    keep_state: bool = False,
 ) -> RunReport:
     """Run the experiment's tasks that the store lacks; commit each as it finishes.
 
@@ -730,7 +740,10 @@ def execute(
     recorded in the store (not as a result) and in the report; the others go on. Trained
     models go to ``models/`` beside the store (:func:`models_dir_for`); a model is reused
     from there, or from the ``pretrained`` directories, when the directory's manifest
-    vouches for its file.
+    vouches for its file. A training cut short goes on from its last saved state when the
+    run is repeated (:func:`rl.deep.train_or_load_deep`); with ``keep_state`` the longest
+    training of each lineage keeps its state at its end in ``models/``, so that a longer
+    budget added later goes on from it.
     """
     start = time.perf_counter()
     workers = check_run_options(workers, scheduler)
@@ -749,7 +762,7 @@ def execute(
         if not todo:
             return RunReport(total, total, 0, time.perf_counter() - start)
         failures = _run_todo(todo, store, workers, scheduler, client, models_dir, tuple(pretrained), on_progress,
-                             on_training)
+                             on_training, keep_state)
     return RunReport(total, total - len(todo), len(todo), time.perf_counter() - start, tuple(failures))
 
 
@@ -773,7 +786,8 @@ def check_models_for(experiment: Experiment, store: ResultStore, pretrained: tup
 def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str | None, client: Any,
               models_dir: str, pretrained: tuple[str, ...],
               on_progress: Callable[[int, int], None] | None,
-              on_training: Callable[[Task, int, int, bool], None] | None = None) -> list[Failure]:
+              on_training: Callable[[Task, int, int, bool], None] | None = None,
+              keep_state: bool = False) -> list[Failure]:
     """Run the tasks (locally, or on the Dask cluster of ``client``), committing each
     outcome to the store as it comes; returns the failures."""
     by_key = {t.key: t for t in todo}
@@ -783,7 +797,7 @@ def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str
             on_training(by_key[key], steps, total, finished)
 
     todo_dicts = [t.to_dict() for t in todo]
-    stages = _batches(todo, workers if scheduler is None else 4, models_dir, pretrained)
+    stages = _batches(todo, workers if scheduler is None else 4, models_dir, pretrained, keep_state)
     modules = _modules_for(todo_dicts)
     limit = None
     if scheduler:
