@@ -217,8 +217,16 @@ def test_the_grid_curves_run_in_quick(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(swiptopt.cli, "STATUS_INTERVAL_S", 0.0)  # every report is a line (stderr is no terminal)
     out = tmp_path / "curves.md"
     code = main(["run", "learning-curve", "--quick", "--store", str(tmp_path / "s.sqlite"), "--format", "markdown",
-                 "--output", str(out), "--workers", "2"])
+                 "--output", str(out), "--workers", "2", "--keep-state"])
     assert code == 0
+    # --keep-state: each lineage's longest training keeps its state at its end, for a longer budget to go on from
+    from rl.resume import read_state
+
+    states = {p.name.split("-")[0]: read_state(p, header_only=True)[0]
+              for p in (tmp_path / "models").glob("*.state.npz")}
+    longest = {b[-1] for e in learning_curves() for b in e.quick().budgets.values()}
+    assert {"sac", "ppo", "dqn", "maskable_ppo"} <= set(states)
+    assert all(header["steps"] in longest for header in states.values())
     status = capsys.readouterr().err.splitlines()
     # plain status lines: the tasks done, and each training under way with its steps
     assert status[0].startswith("learning-curve: 0/") and " tasks, 0:00:0" in status[0]
