@@ -220,7 +220,9 @@ def restore_state(model: Any, header: Mapping[str, Any], arrays: Mapping[str, np
         _restore_buffer(getattr(model, "replay_buffer", None), header["buffer"], arrays)
         actions = arrays["actions"]
         last_obs = _replay(model.env, actions)
-        if last_obs.shape != arrays["last_obs"].shape or not np.array_equal(last_obs, arrays["last_obs"]):
+        saved_obs = arrays["last_obs"]
+        if (last_obs.shape, last_obs.dtype, last_obs.tobytes()) != (saved_obs.shape, saved_obs.dtype,
+                                                                    saved_obs.tobytes()):
             raise ValueError(f"replaying its {len(actions)} vector steps does not reach its observation")
         model._last_obs = last_obs
         if "last_episode_starts" in arrays:
