@@ -1229,8 +1229,13 @@ def _check_state(state: Path | None, directory: Path, config: DeepConfig, scenar
                  savers: Mapping[int, Any]) -> str:
     """Delete a state file :func:`train_or_load_deep` must not go on from, saying why ("" if
     it may, or there is none): unreadable, or past checkpoints whose models are not in
-    ``directory`` (going on would never save them)."""
-    if state is None or not state.is_file():
+    ``directory`` (going on would never save them). Also deletes what a process killed while
+    it wrote the state left behind (:func:`_atomic_write`'s temporary file, hundreds of MB
+    for SAC)."""
+    if state is None:
+        return ""
+    _drop_orphans(state)
+    if not state.is_file():
         return ""
     steps = _state_steps(state)
     if steps is None:
@@ -1243,6 +1248,21 @@ def _check_state(state: Path | None, directory: Path, config: DeepConfig, scenar
         return (f"{state.name} is past the checkpoint at {min(missing)} steps, whose model is not in {directory}: "
                 "trained from the start")
     return ""
+
+
+def _drop_orphans(path: Path) -> None:
+    """Delete the temporary files of :func:`_atomic_write` for ``path`` whose writer is no
+    longer running (killed before it could rename or delete them)."""
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        pid = tmp.name[len(path.name) + 2 : -len(".tmp")]
+        if not pid.isdigit():
+            continue
+        try:
+            os.kill(int(pid), 0)  # signal 0: is the process there?
+        except ProcessLookupError:
+            tmp.unlink(missing_ok=True)
+        except PermissionError:  # pragma: no cover - another user's process: leave its file
+            pass
 
 
 def _drop_state(state: Path, timesteps: int) -> None:

@@ -177,3 +177,23 @@ def test_the_runner_asks_only_each_lineages_longest_training_to_keep_its_state()
     assert kept and all(d["checkpoints"] is not None for d in kept)
     assert not any(d.get(KEEP_STATE) for batch in followers for d in batch)
     assert not any(d.get(KEEP_STATE) for stage in _batches(tasks, 2, "/tmp/models") for b in stage for d in b)
+
+
+def test_what_a_killed_writer_left_behind_is_deleted_and_a_live_ones_kept(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from rl.deep import DeepConfig, _check_state
+
+    algorithm, scenario, steps, kwargs = RUNS["ppo-continuous"]
+    config = DeepConfig(algorithm, steps, 1, kwargs["hyperparams"], NET, None, "continuous", kwargs["n_envs"])
+    state = state_path(tmp_path, config, scenario)
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    orphan = tmp_path / f".{state.name}.{int(gone.stdout)}.tmp"
+    alive = tmp_path / f".{state.name}.{os.getpid()}.tmp"
+    other = tmp_path / f".other.state.npz.{int(gone.stdout)}.tmp"
+    for path in (orphan, alive, other):
+        path.write_bytes(b"half a state")
+    assert _check_state(state, tmp_path, config, scenario, {}) == ""
+    assert not orphan.exists() and alive.exists() and other.exists()
