@@ -605,7 +605,7 @@ def _state_keeper(path: Path, lineage: str, log: Any, prior: Mapping[str, Any], 
     ``prior``: what the run had done before it resumed (actions, times)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from rl.resume import read_state, save_state
+    from rl.resume import save_state
 
     class StateKeeper(BaseCallback):
         def __init__(self) -> None:
@@ -630,11 +630,10 @@ def _state_keeper(path: Path, lineage: str, log: Any, prior: Mapping[str, Any], 
         def save(self) -> None:
             self.last = time.monotonic()
             steps = int(self.model.num_timesteps)
-            if path.is_file():
-                with contextlib.suppress(ConfigError):
-                    if int(read_state(path, header_only=True)[0].get("steps", -1)) >= steps:
-                        return
-            extra = {"lineage": lineage, "steps": steps, "versions": _versions(),
+            kept = _state_steps(path)
+            if kept is not None and kept >= steps:
+                return
+            extra = {"lineage": lineage, "steps": steps,
                      "train_seconds": prior.get("train_seconds", 0.0) + time.perf_counter() - self.start,
                      "cpu_seconds": prior.get("cpu_seconds", 0.0) + time.process_time() - self.cpu}
             save_state(path, self.model, self.actions, extra, {"returns": np.asarray(log.returns, dtype=float)})
