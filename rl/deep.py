@@ -56,6 +56,7 @@ import numpy as np
 
 from swiptopt.env import INFO_KEY, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.fpmath import pin_torch_cpu_paths, torch_cpu_path_overrides
 from swiptopt.scenario import Scenario
 from swiptopt.validation import Spec, check_value
 from swiptopt.worlds import ENV_IDS, GRID, check_world, make_env
@@ -423,8 +424,6 @@ def pin_torch() -> None:
     parallel work; if that has happened, the count is left as it is (it does not change
     results).
     """
-    from swiptopt.fpmath import pin_torch_cpu_paths
-
     pin_torch_cpu_paths()
     import torch
 
@@ -473,8 +472,10 @@ def _env_id(config: DeepConfig) -> str:
 def deep_config_hash(config: DeepConfig, scenario: Scenario) -> str:
     """A hex SHA-256 naming a training run: the configuration (algorithm, timesteps, seed,
     settings, layouts, world, copies, environment), the scenario, the observation, the
-    environment's id and version, and the versions of Stable-Baselines3 (and sb3-contrib),
-    torch and Gymnasium. Equal hashes mean the same trained model."""
+    environment's id and version, the versions of Stable-Baselines3 (and sb3-contrib),
+    torch and Gymnasium, and torch's CPU-path settings where the user changed them from the
+    pinned ones (:func:`swiptopt.fpmath.torch_cpu_path_overrides`). Equal hashes mean the
+    same trained model."""
     return _run_hash(config.to_dict(), config, scenario)
 
 
@@ -495,6 +496,9 @@ def _run_hash(plain: Mapping[str, Any], config: DeepConfig, scenario: Scenario) 
         "env": _env_id(config),
         "versions": _versions(),
     }
+    overrides = torch_cpu_path_overrides()
+    if overrides:  # torch on other CPU paths trains other weights (absent under the pin: names unchanged)
+        payload["cpu_paths"] = overrides
     text = json.dumps(payload, sort_keys=True, default=_canonical, allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 

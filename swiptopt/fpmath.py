@@ -165,13 +165,28 @@ def pow10(x: ArrayLike, *, backend: str = "auto") -> np.ndarray:
 TORCH_CPU_PATHS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
 
 
+def _x86_64() -> bool:
+    return platform.machine().lower() in ("x86_64", "amd64")
+
+
 def pin_torch_cpu_paths() -> dict[str, str | None]:
     """Set :data:`TORCH_CPU_PATHS` in this process's environment, unless the user has set
     them, so that torch trains the same model on any x86-64 CPU with AVX2; returns what
     is in effect. Both are read when torch first computes, so call this before any torch
     computation in the process (an import alone is fine). Nothing is set on other
     architectures."""
-    if platform.machine().lower() in ("x86_64", "amd64"):
+    if _x86_64():
         for name, value in TORCH_CPU_PATHS.items():
             os.environ.setdefault(name, value)
     return {name: os.environ.get(name) for name in TORCH_CPU_PATHS}
+
+
+def torch_cpu_path_overrides() -> dict[str, str]:
+    """The settings of :data:`TORCH_CPU_PATHS` the user has set to something else (on
+    x86-64; compared without regard to case), as this process's environment holds them.
+    torch trains other weights on other paths, so a trained model's name includes these
+    (``rl.deep``): empty, as under the pin, it leaves the name as it was."""
+    if not _x86_64():
+        return {}
+    return {name: os.environ[name] for name, pinned in TORCH_CPU_PATHS.items()
+            if os.environ.get(name, pinned).strip().upper() != pinned.upper()}

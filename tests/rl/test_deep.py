@@ -416,3 +416,28 @@ def test_training_writes_nothing_outside_the_directories_named(tmp_path, monkeyp
     _train("ppo", timesteps=128)
     train_deep("dqn", TINY, 128, 0, hyperparams=SETTINGS["dqn"], policy_kwargs=NET, n_envs=2)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_model_trained_on_other_torch_cpu_paths_has_another_name(monkeypatch):
+    """Under the pinned CPU paths (set or not yet set) the name is the one the shipped models
+    carry; a user's other MKL or ATen setting names another model, whose lineage differs too,
+    so neither a pretrained model nor a kept state of the pinned run is taken for it."""
+    import platform
+
+    from rl.deep import lineage_hash
+
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        pytest.skip("the pinned paths are x86-64's")
+    config = DeepConfig("ppo", 1000, 0, {"n_steps": 64}, {"net_arch": [32]})
+    for name in ("MKL_CBWR", "ATEN_CPU_CAPABILITY"):
+        monkeypatch.delenv(name, raising=False)
+    unset = deep_config_hash(config, TINY), lineage_hash(config, TINY)
+    monkeypatch.setenv("MKL_CBWR", "compatible")
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "AVX2")
+    assert (deep_config_hash(config, TINY), lineage_hash(config, TINY)) == unset
+    names = {unset}
+    for name, value in (("MKL_CBWR", "AVX2"), ("ATEN_CPU_CAPABILITY", "avx512")):
+        with monkeypatch.context() as patched:
+            patched.setenv(name, value)
+            names.add((deep_config_hash(config, TINY), lineage_hash(config, TINY)))
+    assert len(names) == 3 and len({key for pair in names for key in pair}) == 6
