@@ -177,6 +177,17 @@ def _pretrained(retrain: bool) -> tuple[str, ...]:
     return () if retrain or not PRETRAINED_DIR.is_dir() else (str(PRETRAINED_DIR),)
 
 
+def _check_before_running(experiments, store, retrain: bool) -> None:  # type: ignore[no-untyped-def]
+    """What every experiment of a run needs of the store, checked before any task runs: a
+    usable models directory and, with ``--retrain``, no result from a shipped model."""
+    from swiptopt.benchmark.runner import check_models_for, check_retrain
+
+    for experiment in experiments:
+        check_models_for(experiment, store, _pretrained(retrain))
+        if retrain:
+            check_retrain(experiment, store)
+
+
 #: Seconds between two status lines of a run whose stderr is not a terminal (a log file, CI).
 STATUS_INTERVAL_S = 60.0
 
@@ -255,7 +266,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     from rich.console import Console
 
     from swiptopt.benchmark import tables
-    from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
+    from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     if quick:
@@ -266,8 +277,7 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     console = Console(stderr=True)
     texts, failures, reports = [], [], []
     with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
-        for experiment in experiments:  # the models directory, for every experiment, before any runs
-            check_models_for(experiment, store, _pretrained(retrain))
+        _check_before_running(experiments, store, retrain)
         for experiment in experiments:
             with _run_status(console, experiment.name) as (on_progress, on_training):
                 report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=on_progress,
@@ -450,7 +460,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 
     from swiptopt.benchmark import plots, tables
     from swiptopt.benchmark.experiment import paper_figures
-    from swiptopt.benchmark.runner import check_models_for, check_run_options, execute
+    from swiptopt.benchmark.runner import check_run_options, execute
     from swiptopt.benchmark.store import DEFAULT_STORE, ResultStore
 
     check_output_dir(outdir, "--outdir")
@@ -468,8 +478,7 @@ def reproduce(what, quick, store_path, workers, scheduler, outdir, link, retrain
 
         experiments = [e.quick() if quick else e for e in load_experiments("learning-curve")]
         with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
-            for experiment in experiments:
-                check_models_for(experiment, store, _pretrained(retrain))
+            _check_before_running(experiments, store, retrain)
             for experiment in experiments:
                 report = execute(experiment, store, workers=workers, scheduler=scheduler,
                                  pretrained=_pretrained(retrain), client=client)

@@ -783,6 +783,20 @@ def check_models_for(experiment: Experiment, store: ResultStore, pretrained: tup
     check_models_dir(_todo(experiment.tasks(), store), models_dir_for(store.path), tuple(pretrained))
 
 
+def check_retrain(experiment: Experiment, store: ResultStore) -> None:
+    """What ``--retrain`` checks before any task runs: that ``store`` holds no result of
+    ``experiment`` evaluated with a model shipped with swiptopt. A store keeps a task's
+    first result, so such a task would be reported from the shipped model, not retrained."""
+    keys = {t.key for t in experiment.tasks()} & store.keys()
+    shipped = [r["task"]["algorithm"] for r in store.get(sorted(keys)).values() if r["extra"].get("model_shipped")]
+    if shipped:
+        names = ", ".join(sorted(set(shipped)))
+        raise ConfigError(f"--retrain: the store {str(store.path)!r} already holds {len(shipped)} results of "
+                          f"{experiment.name!r} evaluated with the models shipped with swiptopt ({names}); a store "
+                          "keeps a task's first result, so they would be reported, not retrained: name a new "
+                          "--store", "store")
+
+
 def _run_todo(todo: list[Task], store: ResultStore, workers: int, scheduler: str | None, client: Any,
               models_dir: str, pretrained: tuple[str, ...],
               on_progress: Callable[[int, int], None] | None,

@@ -4,13 +4,16 @@ and retraining reproduces a shipped model's evaluation exactly."""
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 
 import pytest
 
 from rl.deep import file_sha256, read_manifest, read_weights
 from swiptopt.benchmark.experiment import builtin_experiments
-from swiptopt.benchmark.runner import PRETRAINED_DIR, execute
+from swiptopt.benchmark.runner import PRETRAINED_DIR, check_retrain, execute
 from swiptopt.benchmark.store import ResultStore
+from swiptopt.errors import ConfigError
 
 pytest.importorskip("stable_baselines3")
 
@@ -53,6 +56,21 @@ def test_retraining_reproduces_the_shipped_models_evaluations(suite, tmp_path):
     for key in keys:
         assert shipped[key]["records"] == retrained[key]["records"]
         assert shipped[key]["extra"]["model"] == retrained[key]["extra"]["model"]
+    # --retrain refuses the store of shipped models' results (it would report them, not
+    # retrain), before any task runs, and takes the retrained one
+    with ResultStore(tmp_path / "shipped" / "s.sqlite") as store:
+        with pytest.raises(ConfigError, match=r"already holds \d+ results of 'compare' .*\(dqn, ppo, stop_ppo\)"):
+            check_retrain(experiment, store)
+        count = store.count()
+    with ResultStore(tmp_path / "retrained" / "s.sqlite") as store:
+        check_retrain(experiment, store)
+    result = subprocess.run([sys.executable, "-m", "swiptopt.cli", "compare", "--quick", "--suite", "standard",
+                             "--retrain", "--store", str(tmp_path / "shipped" / "s.sqlite")],
+                            capture_output=True, text=True)
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1 and "--retrain" in lines[0] and "new --store" in lines[0]
+    with ResultStore(tmp_path / "shipped" / "s.sqlite") as store:
+        assert store.count() == count
 
 
 @pytest.mark.parametrize("suite", ["compare", "harbour"])
