@@ -442,7 +442,9 @@ def pin_torch() -> None:
         torch.use_deterministic_algorithms(True)
 
 
-def _versions() -> dict[str, str]:
+def model_versions() -> dict[str, str]:
+    """The versions of the packages that name a trained model (:func:`deep_config_hash`):
+    Stable-Baselines3, sb3-contrib (when installed), torch and Gymnasium, as installed."""
     out = {}
     for package in ("stable_baselines3", "sb3_contrib", "torch", "gymnasium"):
         try:
@@ -494,7 +496,7 @@ def _run_hash(plain: Mapping[str, Any], config: DeepConfig, scenario: Scenario) 
         "scenario": scenario.to_dict(),
         "observation": OBSERVATION,
         "env": _env_id(config),
-        "versions": _versions(),
+        "versions": model_versions(),
     }
     overrides = torch_cpu_path_overrides()
     if overrides:  # torch on other CPU paths trains other weights (absent under the pin: names unchanged)

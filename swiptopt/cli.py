@@ -259,10 +259,11 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
 
 
 def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, output,  # type: ignore[no-untyped-def]
-                    caption=False, retrain=False, keep_state=False) -> None:
+                    caption=False, retrain=False, keep_state=False, expect_shipped=False) -> None:
     """Run the experiments one after the other into one store, print each one's tables as
     it finishes (``caption``: each under its name and world, also in
-    the text formats), and write them all to ``output``."""
+    the text formats), and write them all to ``output``. ``expect_shipped``: the run is
+    meant to reuse the shipped models (``compare``), so say first if it will train any."""
     from rich.console import Console
 
     from swiptopt.benchmark import tables
@@ -278,6 +279,8 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     texts, failures, reports = [], [], []
     with _scheduler_client(scheduler) as client, ResultStore(store_path or DEFAULT_STORE) as store:
         _check_before_running(experiments, store, retrain)
+        if expect_shipped and not retrain:
+            _say_what_trains(console, experiments, store, quick)
         for experiment in experiments:
             with _run_status(console, experiment.name) as (on_progress, on_training):
                 report = execute(experiment, store, workers=workers, scheduler=scheduler, on_progress=on_progress,
@@ -297,6 +300,26 @@ def _run_and_report(experiments, quick, store_path, workers, scheduler, fmt, out
     _report_failures(console, failures)
     if failures:
         raise click.exceptions.Exit(EXIT_TASKS_FAILED)
+
+
+def _say_what_trains(console, experiments, store, quick=False) -> None:  # type: ignore[no-untyped-def]
+    """One line before a run that was to reuse the shipped models but will train some: how
+    many, of which algorithms, and why (the shipped ones are named for the package
+    versions ``make`` installs; :func:`swiptopt.benchmark.runner.models_to_train`)."""
+    from rl.deep import model_versions
+    from swiptopt.benchmark.runner import models_to_train
+    from swiptopt.fpmath import torch_cpu_path_overrides
+
+    missing = [a for e in experiments for a in models_to_train(e, store, _pretrained(False))]
+    if not missing:
+        return
+    names = ", ".join(f"{n} {name}" for name, n in sorted(Counter(missing).items()))
+    versions = ", ".join(f"{package} {v}" for package, v in model_versions().items())
+    paths = "".join(f", {name}={value}" for name, value in torch_cpu_path_overrides().items())
+    console.print(f"{len(missing)} deep-RL models ({names}) are neither in the store's models/ nor shipped for "
+                  f"this installation ({versions}{paths}; the shipped ones are named for the versions `make` "
+                  "installs from constraints.txt and for torch's pinned CPU paths): they are trained now"
+                  + ("" if quick else ", which takes hours on 2 cores"), markup=False, highlight=False)
 
 
 def _print_curves(reports, fmt) -> list[str]:  # type: ignore[no-untyped-def]
@@ -403,7 +426,7 @@ def compare(suite, quick, store_path, workers, scheduler, fmt, output, retrain, 
 
     builtins = builtin_experiments()
     _run_and_report([builtins[name] for name in SUITES[suite]], quick, store_path, workers, scheduler, fmt, output,
-                    caption=True, retrain=retrain, keep_state=keep_state)
+                    caption=True, retrain=retrain, keep_state=keep_state, expect_shipped=True)
 
 
 def _print_builtins(ctx: click.Context, _param: click.Parameter, value: bool) -> None:

@@ -568,6 +568,31 @@ def _dask(stages: list[list[list[dict[str, Any]]]], client: Any, modules: tuple[
 # ------------------------------------------------------------------------ models
 
 
+def _models_of(tasks: list[Task], models_dir: str,
+               pretrained: tuple[str, ...] = ()) -> Iterator[tuple[Task, Any, Any, Path]]:
+    """Each model the built-in algorithms' tasks keep (their ``trained_model``), once: the
+    first task that names it, its training configuration and scenario, and its path in
+    ``models_dir`` (a plugin's code runs only in its tasks, so its models are not named)."""
+    from rl.deep import model_path
+    from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
+    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
+    from swiptopt.scenario import Scenario
+
+    seen: set[Path] = set()
+    for t in tasks:
+        algorithm = ALGORITHMS.get(t.algorithm)
+        if algorithm is None or t.plugin or algorithm.trained_model is None:
+            continue
+        training = tuple(t.training_layouts) if t.training_layouts is not None else None
+        context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, training, models_dir,
+                               t.world, (), tuple(pretrained))
+        config, scenario = algorithm.trained_model(t.settings, t.seed, context)
+        path = model_path(Path(models_dir), config, scenario)
+        if path not in seen:
+            seen.add(path)
+            yield t, config, scenario, path
+
+
 def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, ...] = ()) -> None:
     """Refuse, before any task runs, a models directory the tasks could not use: a file at
     its path (when any task keeps a model), a directory where the manifest or its lock goes,
@@ -575,10 +600,7 @@ def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, 
     directory where its model or its lock goes, a lock file that cannot be written, or a
     directory this process cannot write that does not hold the model (a read-only
     directory that holds every model is read as it is)."""
-    from rl.deep import MANIFEST, find_model, model_path
-    from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
-    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
-    from swiptopt.scenario import Scenario
+    from rl.deep import MANIFEST, find_model
 
     keeping = [t for t in tasks if (a := _algorithm_of(t.to_dict())) is not None and a.trains_model]
     if not keeping:
@@ -595,19 +617,7 @@ def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, 
     while not ancestor.exists() and ancestor != ancestor.parent:
         ancestor = ancestor.parent
     writable = os.access(ancestor, os.W_OK | os.X_OK)
-    seen: set[Path] = set()
-    for t in keeping:
-        algorithm = ALGORITHMS.get(t.algorithm)
-        if algorithm is None or t.plugin or algorithm.trained_model is None:
-            continue  # a plugin's code runs only in its tasks
-        training = tuple(t.training_layouts) if t.training_layouts is not None else None
-        context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, training, models_dir,
-                               t.world, (), tuple(pretrained))
-        config, scenario = algorithm.trained_model(t.settings, t.seed, context)
-        path = model_path(directory, config, scenario)
-        if path in seen:
-            continue
-        seen.add(path)
+    for t, config, scenario, path in _models_of(keeping, models_dir, pretrained):
         lock = path.with_name(path.name + ".lock")
         for place, what in ((path, "a trained model"), (lock, "a model's lock")):
             if place.is_dir():
@@ -619,6 +629,21 @@ def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, 
                                   f"{path.name} ({t.algorithm}): make it writable", "models")
         elif lock.exists() and not os.access(lock, os.W_OK):
             raise ConfigError(f"{str(lock)!r} (a model's lock) is not writable: remove it", "models")
+
+
+def models_to_train(experiment: Experiment, store: ResultStore, pretrained: tuple[str, ...] | list[str] = ()
+                    ) -> list[str]:
+    """The algorithms (one entry per model) whose models the tasks of ``experiment`` that
+    ``store`` lacks would train: neither in the store's models directory nor vouched for in
+    ``pretrained``. A model is named by its configuration and by the versions of torch,
+    Stable-Baselines3, sb3-contrib and Gymnasium (:func:`rl.deep.deep_config_hash`), so an
+    installation with other versions finds none of the shipped models."""
+    from rl.deep import find_model
+
+    models_dir = models_dir_for(store.path)
+    return [t.algorithm for t, config, scenario, _ in _models_of(_todo(experiment.tasks(), store), models_dir,
+                                                                    tuple(pretrained))
+            if find_model([models_dir, *pretrained], config, scenario)[0] is None]
 
 
 # ------------------------------------------------------------------------- a run

@@ -10,8 +10,9 @@ import sys
 import pytest
 
 from rl.deep import file_sha256, read_manifest, read_weights
+from swiptopt.benchmark.algorithms import ALGORITHMS
 from swiptopt.benchmark.experiment import builtin_experiments
-from swiptopt.benchmark.runner import PRETRAINED_DIR, check_retrain, execute
+from swiptopt.benchmark.runner import PRETRAINED_DIR, check_retrain, execute, models_to_train
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.errors import ConfigError
 
@@ -74,25 +75,65 @@ def test_retraining_reproduces_the_shipped_models_evaluations(suite, tmp_path):
 
 
 @pytest.mark.parametrize("suite", ["compare", "harbour"])
-def test_every_model_compare_needs_is_shipped(suite):
+def test_every_model_compare_needs_is_shipped(suite, tmp_path):
     """`compare` (both suites, full budgets, a new store) trains nothing: each deep-RL task's
-    model is in the shipped directory, vouched for by its manifest."""
-    from rl.deep import find_model
-    from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
-    from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
-    from swiptopt.scenario import Scenario
+    model is in the shipped directory, vouched for by its manifest; without it, every
+    contender's three training seeds would each train one model (trained across layouts)."""
+    experiment = builtin_experiments()[suite]
+    contenders = sorted(a for a in experiment.algorithms if ALGORITHMS[a].trained_model is not None)
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        assert models_to_train(experiment, store, (str(PRETRAINED_DIR),)) == []
+        assert sorted(models_to_train(experiment, store)) == sorted(contenders * 3)
 
-    needed = set()
-    for t in builtin_experiments()[suite].tasks():
-        algorithm = ALGORITHMS[t.algorithm]
-        if algorithm.trained_model is None:
-            continue
-        context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, tuple(t.training_layouts),
-                               None, t.world, (), (str(PRETRAINED_DIR),))
-        config, scenario = algorithm.trained_model(t.settings, t.seed, context)
-        found, note = find_model([PRETRAINED_DIR], config, scenario)
-        assert found is not None, f"{suite}: {t.algorithm} seed {t.seed}: {note}"
-        needed.add(found.name)
-    # three training seeds of each deep-RL contender, one model each (trained across layouts)
-    assert len(needed) == 3 * len([a for a in builtin_experiments()[suite].algorithms if ALGORITHMS[a].trains_model
-                                   and ALGORITHMS[a].trained_model is not None])
+
+def test_compare_says_first_when_the_installation_names_no_shipped_model(tmp_path, monkeypatch):
+    """Models are named for the versions of torch, SB3, sb3-contrib and Gymnasium: an
+    installation with others finds none of the shipped models, and compare says so (how
+    many, which, and why) before it starts training them; with the pinned ones, nothing."""
+    import io
+
+    from rich.console import Console
+
+    import rl.deep
+    from swiptopt.cli import _say_what_trains
+
+    experiments = [builtin_experiments()[name] for name in ("compare", "harbour")]
+    with ResultStore(tmp_path / "s.sqlite") as store:
+        said = io.StringIO()
+        _say_what_trains(Console(file=said, width=400), experiments, store)
+        assert said.getvalue() == ""
+        pinned = rl.deep.model_versions()
+        monkeypatch.setattr(rl.deep, "model_versions", lambda: {**pinned, "torch": "0.1"})
+        _say_what_trains(Console(file=said, width=400), experiments, store)
+        _say_what_trains(Console(file=said, width=400), [e.quick() for e in experiments], store, quick=True)
+    lines = said.getvalue().splitlines()
+    assert len(lines) == 2, lines
+    # standard: PPO, DQN, stop-choosing PPO; harbour: PPO, SAC, stop-choosing PPO; 3 training
+    # seeds each (one with --quick)
+    assert lines[0].startswith("18 deep-RL models (3 dqn, 6 ppo, 3 sac, 6 stop_ppo) are neither")
+    assert lines[1].startswith("6 deep-RL models (1 dqn, 2 ppo, 1 sac, 2 stop_ppo) are neither")
+    assert all("torch 0.1" in line for line in lines)
+    assert lines[0].endswith("trained now, which takes hours on 2 cores") and lines[1].endswith("trained now")
+
+
+def test_the_packages_that_name_a_model_are_pinned_for_every_python():
+    """constraints.txt pins torch, SB3, sb3-contrib and Gymnasium without a Python marker,
+    at the versions installed here (the shipped models' names hold them), so that `make`
+    on any Python installs the versions the shipped models are named for."""
+    from pathlib import Path
+
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    from rl.deep import model_versions
+
+    root = Path(__file__).resolve().parents[3]
+    pins = {}
+    for line in (root / "constraints.txt").read_text(encoding="utf-8").splitlines():
+        if line.strip() and not line.startswith("#"):
+            requirement = Requirement(line)
+            pins[canonicalize_name(requirement.name)] = requirement
+    for package, installed in model_versions().items():
+        requirement = pins[canonicalize_name(package)]
+        assert requirement.marker is None, f"{package} is pinned for one Python only: {requirement}"
+        assert str(requirement.specifier) == f"=={installed}", (package, installed, str(requirement))
