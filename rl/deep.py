@@ -1146,6 +1146,9 @@ def train_or_load_deep(
     (kept with ``keep_state``, which keeps the run's state at its end) is gone on from too,
     when every checkpoint it passed is in ``directory``. A state that cannot be used is
     deleted and the run trains from the start, the result's ``note`` saying why.
+
+    A ``directory`` this process cannot write is only read, without a lock: a model missing
+    from it and from ``pretrained`` is a :class:`ConfigError` (``models``), not trained.
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("train_or_load_deep needs a Scenario (its configuration names the model)", "scenario")
@@ -1154,6 +1157,12 @@ def train_or_load_deep(
     key = deep_config_hash(config, scenario)
     directory = Path(directory)
     path = model_path(directory, config, scenario)
+    if not _writable(directory):  # no lock can be made here and no model trained: only read
+        found, note = find_model([directory, *pretrained], config, scenario)
+        if found is None:
+            raise ConfigError(f"the models directory {str(directory)!r} is not writable and holds no trusted "
+                              f"{path.name}: make it writable to train it", "models")
+        return _loaded(found, note, config, scenario, key)
     directory.mkdir(parents=True, exist_ok=True)
     kwargs = dict(hyperparams=hyperparams, policy_kwargs=policy_kwargs, layout_seeds=layout_seeds, world=world,
                   n_envs=n_envs, env_id=env_id, env_kwargs=env_kwargs)
@@ -1169,17 +1178,28 @@ def train_or_load_deep(
         found, note = find_model([directory, *pretrained], config, scenario)
         if found is not None:
             try:
-                model = load_weights(found, config, scenario, config_hash=key)
+                return _loaded(found, note, config, scenario, key)
             except ConfigError as exc:
                 note = "; ".join(filter(None, [note, str(exc)]))
-            else:
-                return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found,
-                                  sha256=file_sha256(found), note=note)
         result, trained_note = _train_resuming(directory, config, scenario, savers, keep_state, kwargs)
         note = "; ".join(filter(None, [note, trained_note]))
         digest = _save_recorded(directory, path, result.model, config, key)
     why = f"retrained: {note}" if note else ""
     return dataclasses.replace(result, config_hash=key, note=why, path=path, sha256=digest)
+
+
+def _writable(directory: Path) -> bool:
+    """Whether this process can make files in ``directory`` (or create it, when it is missing)."""
+    while not directory.exists() and directory != directory.parent:
+        directory = directory.parent
+    return os.access(directory, os.W_OK | os.X_OK)
+
+
+def _loaded(found: Path, note: str, config: DeepConfig, scenario: Scenario, key: str) -> DeepResult:
+    """The trusted model file ``found`` of ``config``, loaded (:func:`load_weights`)."""
+    model = load_weights(found, config, scenario, config_hash=key)
+    return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found, sha256=file_sha256(found),
+                      note=note)
 
 
 def _train_resuming(directory: Path, config: DeepConfig, scenario: Scenario, savers: Mapping[int, Any],

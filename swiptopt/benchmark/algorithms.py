@@ -50,11 +50,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 from planners.bounds import MILP_EXPECTED_NAME, MILP_NAME, OPEN_LOOP
@@ -476,47 +474,18 @@ def _deep_model(sb3: str, stops: bool = False, fleet: bool = False,
     return model
 
 
-def _load_unlocked(directories: list[str], config: Any, scenario: Any) -> Any:
-    """The trusted model of ``config`` in ``directories`` (each vouched for by its manifest),
-    loaded without taking its lock, as :func:`rl.deep.train_or_load_deep` loads it; for a
-    models directory this process cannot write (where no lock can be made, and no model
-    trained). A missing model is a :class:`ConfigError`."""
-    import numpy as np
-
-    from rl.deep import DeepResult, deep_config_hash, file_sha256, find_model, load_weights, model_path
-
-    found, note = find_model(directories, config, scenario)
-    if found is None:
-        name = model_path(directories[0], config, scenario).name
-        raise ConfigError(f"the models directory {directories[0]} is not writable and holds no trusted {name}: "
-                          "make it writable to train it", "models")
-    key = deep_config_hash(config, scenario)
-    model = load_weights(found, config, scenario, config_hash=key)
-    return DeepResult(model, config, key, 0.0, np.zeros(0), loaded=True, path=found, sha256=file_sha256(found),
-                      note=note)
-
-
-def _writable(directory: str) -> bool:
-    """Whether this process can make files in ``directory`` (or create it, when it is missing)."""
-    path = Path(directory)
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    return os.access(path, os.W_OK | os.X_OK)
-
-
 def _train_or_load(sb3: str, scenario: Any, settings: dict[str, Any], seed: int, context: BuildContext,
                    arguments: dict[str, Any]) -> Any:
     """The trained model of a deep-RL task (:func:`_deep_run`): trained in the task without a
     models directory; else loaded from it (or from the pretrained directories) or trained
     and kept there, saving the lineage's shorter budgets on the way (``context.checkpoints``,
-    those that are exact); a directory this process cannot write is only read."""
+    those that are exact); a directory this process cannot write is only read
+    (:func:`rl.deep.train_or_load_deep`)."""
     from rl.deep import checkpoint_exact, train_deep, train_or_load_deep
 
     if context.models_dir is None:
         return train_deep(sb3, scenario, settings["timesteps"], seed, **arguments)
     config = _deep_config(sb3, settings, seed, arguments)
-    if not _writable(context.models_dir):
-        return _load_unlocked([context.models_dir, *context.pretrained], config, scenario)
     checkpoints = [steps for steps in context.checkpoints if checkpoint_exact(config, steps, scenario)]
     return train_or_load_deep(context.models_dir, sb3, scenario, settings["timesteps"], seed,
                               checkpoints=checkpoints, pretrained=context.pretrained, keep_state=context.keep_state,

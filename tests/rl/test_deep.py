@@ -1,5 +1,6 @@
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -181,6 +182,35 @@ def test_pretrained_directories_are_used_only_with_their_manifest(tmp_path):
     assert not retrained.loaded and "not recorded" in retrained.note
     for key, value in _parameters(made.model).items():  # retraining gives the same model
         np.testing.assert_array_equal(value, _parameters(retrained.model)[key])
+
+
+def test_a_directory_this_process_cannot_write_is_only_read(tmp_path, monkeypatch):
+    """A read-only models directory (as an unprivileged user sees one: os.access says no)
+    gives its trusted model without a lock file, or a ConfigError naming the directory and
+    the model; it never trains."""
+    import os
+
+    kwargs = dict(hyperparams=SETTINGS["ppo"], policy_kwargs=NET)
+    ready, empty = tmp_path / "ready", tmp_path / "empty"
+    made = train_or_load_deep(ready, "ppo", TINY, 128, 0, **kwargs)
+    for lock in ready.glob("*.lock"):
+        lock.unlink()
+    empty.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: False if mode & os.W_OK and Path(path) in (
+        ready, empty) else real_access(path, mode, **kw))
+    before = sorted(p.name for p in ready.iterdir())
+    read = train_or_load_deep(ready, "ppo", TINY, 128, 0, **kwargs)
+    assert read.loaded and read.path == made.path and read.sha256 == made.sha256
+    assert sorted(p.name for p in ready.iterdir()) == before  # no lock, nothing written
+    for key, value in _parameters(made.model).items():
+        np.testing.assert_array_equal(value, _parameters(read.model)[key])
+    # pretrained directories are read too; a model in neither is refused, not trained
+    assert train_or_load_deep(empty, "ppo", TINY, 128, 0, pretrained=[ready], **kwargs).path == made.path
+    with pytest.raises(swiptopt.ConfigError, match=f"{empty}.* is not writable and holds no trusted "
+                                                   f"{made.path.name}") as refused:
+        train_or_load_deep(empty, "ppo", TINY, 128, 0, **kwargs)
+    assert refused.value.field == "models" and not any(empty.iterdir())
 
 
 def test_a_checkpoint_is_the_model_of_the_shorter_run(tmp_path):
