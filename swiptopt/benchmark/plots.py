@@ -302,6 +302,33 @@ def _budget_units(experiment: Any) -> str:
     return "; ".join([main, *others])
 
 
+#: A learning curve's colour for each algorithm (matplotlib's default cycle), the same in
+#: every panel and figure: an algorithm and its fleet counterpart share one, the learners
+#: and the planners that appear beside them take different ones.
+_CURVE_COLOURS = {
+    "ppo": "C0", "shared_ppo": "C0", "dqn": "C1", "sac": "C2", "stop_ppo": "C3", "fleet_stop_ppo": "C3",
+    "q_learning": "C4", "fleet_q_learning": "C4", "sarsa": "C5", "random": "C7", "fleet_random": "C7",
+    "kmeans_tsp": "C6", "fleet_routing": "C6", "ompl_tour": "C6", "rate_greedy": "C8", "straight_line": "C8",
+    "milp": "C9", "fleet_milp": "C9",
+}
+
+
+def _curve_colours(names: list[str]) -> dict[str, str]:
+    """The colour of each of one panel's algorithms (:data:`_CURVE_COLOURS`); one without a
+    colour of its own, or whose colour another has taken in the panel, gets the first one
+    left of the cycle's ten."""
+    out: dict[str, str] = {}
+    for name in names:
+        wanted = _CURVE_COLOURS.get(name)
+        if wanted is not None and wanted not in out.values():
+            out[name] = wanted
+    free = [f"C{i}" for i in range(10) if f"C{i}" not in out.values()]
+    for name in names:
+        if name not in out:
+            out[name] = free.pop(0) if free else "k"
+    return out
+
+
 def learning_curve_figure(experiments: list[Experiment], store: ResultStore, outdir: str | Path,
                           stem: str = "fig-learning-curve") -> FigureResult:
     """Return against training budget (log x), one panel per experiment with ``budgets``:
@@ -332,13 +359,13 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
             by_row = {r.algorithm: r for r in rows}
             lo = min(min(b) for b in experiment.budgets.values())
             hi = max(max(b) for b in experiment.budgets.values())
-            for r in rows:
-                if "@" in r.algorithm or r.algorithm in experiment.budgets:
-                    continue
+            planners = [r for r in rows if "@" not in r.algorithm and r.algorithm not in experiment.budgets]
+            colour = _curve_colours([*experiment.budgets, *(r.algorithm for r in planners)])
+            for r in planners:
                 s = r.summaries["return"]
                 band = np.nan_to_num(s.ci95)
-                line = ax.plot([lo, hi], [s.mean, s.mean], lw=0.8, ls=":", label=r.label)[0]
-                ax.fill_between([lo, hi], s.mean - band, s.mean + band, color=line.get_color(), alpha=0.15, lw=0)
+                ax.plot([lo, hi], [s.mean, s.mean], lw=0.8, ls=":", color=colour[r.algorithm], label=r.label)
+                ax.fill_between([lo, hi], s.mean - band, s.mean + band, color=colour[r.algorithm], alpha=0.15, lw=0)
                 data_rows.append([experiment.name, r.algorithm, "", s.mean, s.ci95, s.n])
             for name, budgets in experiment.budgets.items():
                 found = [(b, by_row.get(f"{name}@{b}")) for b in budgets]
@@ -348,7 +375,7 @@ def learning_curve_figure(experiments: list[Experiment], store: ResultStore, out
                 x = np.array([b for b, _ in found], dtype=float)
                 s = [r.summaries["return"] for _, r in found]
                 ax.errorbar(x, [v.mean for v in s], yerr=np.nan_to_num([v.ci95 for v in s]), marker="o", ms=2.5,
-                            capsize=2, lw=1, label=found[0][1].label.split(" @ ")[0])
+                            capsize=2, lw=1, color=colour[name], label=found[0][1].label.split(" @ ")[0])
                 data_rows += [[experiment.name, name, b, v.mean, v.ci95, v.n] for b, v in zip(x.astype(int), s)]
                 drawn = True
             if not rows:

@@ -425,3 +425,21 @@ def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected
     for algorithm, fragment in expected.items():
         assert rows[algorithm] in docs
         assert fragment in rows[algorithm]
+
+
+def test_each_algorithm_has_one_colour_in_every_learning_curve_panel():
+    """PPO is drawn in one colour on the grid's panel, the harbour's and the fleet's (its
+    fleet counterpart too), the planners beside the learners in others, and an algorithm
+    whose colour is taken or missing gets one no other in its panel has."""
+    from swiptopt.benchmark.plots import _curve_colours
+
+    grid = _curve_colours(["ppo", "dqn", "stop_ppo", "kmeans_tsp", "rate_greedy", "milp"])
+    harbour = _curve_colours(["ppo", "sac", "stop_ppo", "ompl_tour", "straight_line"])
+    fleet = _curve_colours(["shared_ppo", "fleet_stop_ppo", "fleet_routing"])
+    assert grid["ppo"] == harbour["ppo"] == fleet["shared_ppo"]
+    assert grid["stop_ppo"] == harbour["stop_ppo"] == fleet["fleet_stop_ppo"]
+    for panel in (grid, harbour, fleet):
+        assert len(set(panel.values())) == len(panel)
+    crowded = _curve_colours(["ppo", "rate_greedy", "straight_line", "greedy", "lawnmower"])
+    assert len(set(crowded.values())) == 5 and crowded["straight_line"] not in (crowded["rate_greedy"], "C8")
+    assert crowded["straight_line"] == "C1" and crowded["greedy"] == "C2"  # the first colours left, in order
