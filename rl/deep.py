@@ -56,6 +56,7 @@ import numpy as np
 
 from swiptopt.env import INFO_KEY, check_layout_seeds
 from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.files import can_make_files_in
 from swiptopt.fpmath import pin_torch_cpu_paths, torch_cpu_path_overrides
 from swiptopt.scenario import Scenario
 from swiptopt.validation import Spec, check_value
@@ -1157,7 +1158,7 @@ def train_or_load_deep(
     key = deep_config_hash(config, scenario)
     directory = Path(directory)
     path = model_path(directory, config, scenario)
-    if not _writable(directory):  # no lock can be made here and no model trained: only read
+    if not can_make_files_in(directory):  # no lock can be made here and no model trained: only read
         found, note = find_model([directory, *pretrained], config, scenario)
         if found is None:
             raise ConfigError(f"the models directory {str(directory)!r} is not writable and holds no trusted "
@@ -1186,13 +1187,6 @@ def train_or_load_deep(
         digest = _save_recorded(directory, path, result.model, config, key)
     why = f"retrained: {note}" if note else ""
     return dataclasses.replace(result, config_hash=key, note=why, path=path, sha256=digest)
-
-
-def _writable(directory: Path) -> bool:
-    """Whether this process can make files in ``directory`` (or create it, when it is missing)."""
-    while not directory.exists() and directory != directory.parent:
-        directory = directory.parent
-    return os.access(directory, os.W_OK | os.X_OK)
 
 
 def _loaded(found: Path, note: str, config: DeepConfig, scenario: Scenario, key: str) -> DeepResult:

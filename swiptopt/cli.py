@@ -19,6 +19,7 @@ from pathlib import Path
 import click
 
 from swiptopt.errors import ConfigError, did_you_mean
+from swiptopt.files import existing_ancestor
 from swiptopt.scenario import PRESETS, Scenario, ScenarioError
 
 EXIT_BAD_INPUT = 2
@@ -90,9 +91,7 @@ def check_output_dir(path: str, option: str) -> None:
     target = Path(path)
     if target.exists() and not target.is_dir():
         raise ConfigError(f"{option} {path}: is a file, not a directory", option)
-    ancestor = target
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
+    ancestor = existing_ancestor(target)
     if not ancestor.is_dir():
         raise ConfigError(f"{option} {path}: {str(ancestor)!r} is a file, not a directory", option)
     if not os.access(ancestor, os.W_OK | os.X_OK):

@@ -65,6 +65,7 @@ from swiptopt.benchmark.processes import (
 from swiptopt.benchmark.store import ResultStore
 from swiptopt.errors import ConfigError
 from swiptopt.evaluation import EVALUATION_SEED_OFFSET
+from swiptopt.files import can_make_files_in
 from swiptopt.fpmath import pin_torch_cpu_paths
 
 #: Modules with the native libraries of each algorithm family: imported before the thread
@@ -613,10 +614,7 @@ def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, 
         if (directory / name).is_dir():
             raise ConfigError(f"{str(directory / name)!r} is a directory where the models' manifest goes: remove it",
                               "models")
-    ancestor = directory
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    writable = os.access(ancestor, os.W_OK | os.X_OK)
+    writable = can_make_files_in(directory)
     for t, config, scenario, path in _models_of(keeping, models_dir, pretrained):
         lock = path.with_name(path.name + ".lock")
         for place, what in ((path, "a trained model"), (lock, "a model's lock")):

@@ -39,6 +39,7 @@ from typing import Any
 from urllib.parse import quote
 
 from swiptopt.errors import ConfigError
+from swiptopt.files import existing_ancestor
 from swiptopt.fpmath import TORCH_CPU_PATHS
 
 DEFAULT_STORE = Path("results") / "swiptopt.sqlite"
@@ -228,9 +229,7 @@ def check_new_store_location(path: Path | str) -> None:
         raise StoreError(path, "is a directory; give a file name such as results/swiptopt.sqlite")
     if path.exists():
         return
-    ancestor = path.parent
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
+    ancestor = existing_ancestor(path.parent)
     if not ancestor.is_dir():
         raise StoreError(path, f"cannot be created: {str(ancestor)!r} is a file, not a directory")
     if not os.access(ancestor, os.W_OK | os.X_OK):
