@@ -342,7 +342,7 @@ _HARBOUR_SAC_ROWS = {
 _HARBOUR_ACROSS_PPO_ROWS = {
     "PPO": "4,194,304: 8.29 ± 0.87; 8,388,608: 8.78 ± 1.02 | yes | 4,194,304 | 0.24× [0.21–0.26] 0/8 (OMPL tour)"}
 _HARBOUR_ACROSS_SAC_ROWS = {
-    "SAC": "2,097,152: 10.56 ± 1.18; 4,194,304: 11.84 ± 1.47 | no | 4,194,304 | 0.32× [0.29–0.35] 0/8 (OMPL tour)"}
+    "SAC": "4,194,304: 11.84 ± 1.47; 8,388,608: 12.80 ± 1.54 | yes | 4,194,304 | 0.35× [0.32–0.37] 0/8 (OMPL tour)"}
 _FLEET_STOP_ROWS = {"stop-choosing PPO (fleet)": "262,144: 72.53 ± 6.56; 524,288: 71.38 ± 6.56 | yes | 131,072 | "
                                                  "0.86× [0.84–0.89] 0/4 (k-means + vehicle routing)"}
 _FLEET_TWO_ROWS = {"stop-choosing PPO (fleet)": "131,072: 47.66 ± 1.72; 262,144: 48.06 ± 1.65 | yes | 131,072 | "
