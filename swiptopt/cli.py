@@ -204,7 +204,7 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
     """How far a run of the experiment ``name`` has got, on ``console`` (stderr), as
     ``(on_progress, on_training)`` for :func:`~swiptopt.benchmark.runner.execute`: in a
     terminal, rich's bars (the tasks, and one per deep-RL training under way, with its
-    steps and the time it has left); elsewhere a plain line at most every
+    steps, or decisions, and the time it has left); elsewhere a plain line at most every
     :data:`STATUS_INTERVAL_S` seconds, and one at the end."""
     import time
 
@@ -218,6 +218,8 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
         TimeRemainingColumn,
     )
 
+    from swiptopt.benchmark.experiment import training_unit
+
     start, last = time.monotonic(), [-float("inf")]
 
     def line(progress: Progress, force: bool = False) -> None:
@@ -230,7 +232,8 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
         tasks, *trainings = progress.tasks
         parts = [f"{name}: {int(tasks.completed)}/{int(tasks.total or 0)} tasks, "
                  f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"]
-        parts += [f"{t.description.strip()}: {int(t.completed):,}/{int(t.total or 0):,} steps" for t in trainings]
+        parts += [f"{t.description.strip()}: {int(t.completed):,}/{int(t.total or 0):,} {t.fields['unit']}"
+                  for t in trainings]
         console.print("; ".join(parts), markup=False, highlight=False, soft_wrap=True)
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -249,7 +252,8 @@ def _run_status(console, name: str):  # type: ignore[no-untyped-def]
                     progress.remove_task(rows.pop(task.key))
                 return
             if task.key not in rows:
-                rows[task.key] = progress.add_task(_training_label(task), total=total, completed=steps)
+                rows[task.key] = progress.add_task(_training_label(task), total=total, completed=steps,
+                                                   unit=training_unit(task.algorithm))
             else:
                 progress.update(rows[task.key], completed=steps)
             line(progress)

@@ -398,7 +398,7 @@ class Experiment:
         fleet's too: a stop and its dwell, several steps) or ``steps``."""
         if self.budget_setting(name) == "train_episodes":
             return "episodes"
-        return "decisions" if name.endswith("stop_ppo") else "steps"
+        return training_unit(name)
 
     def rows(self) -> list[tuple[str, str, int | None]]:
         """The table's rows in order: (row name, algorithm, budget); an algorithm with
@@ -866,6 +866,13 @@ GROUPS = {"learning-curve": ("learning-curve", "learning-curve-across", "learnin
 
 #: An experiment's name names its files: letters, digits, '-', '_' and '.', not only dots.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9._-]{1,100}")
+
+
+def training_unit(algorithm: str) -> str:
+    """What a deep-RL algorithm's training counts: ``decisions`` for a stop-choosing agent
+    (the fleet's too: a stop and its dwell, several steps of the world), ``steps`` for the
+    others."""
+    return "decisions" if algorithm.endswith("stop_ppo") else "steps"
 
 
 def budget_row(algorithm: str, budget: int) -> str:

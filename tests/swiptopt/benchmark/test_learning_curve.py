@@ -232,6 +232,8 @@ def test_the_grid_curves_run_in_quick(tmp_path, monkeypatch, capsys):
     assert status[0].startswith("learning-curve: 0/") and " tasks, 0:00:0" in status[0]
     assert any(re.search(r"training dqn \(seed \d, layout \d+\): [\d,]+/[\d,]+ steps", line) for line in status)
     assert any(re.search(r"training sac \(seed \d, across layouts\): [\d,]+/[\d,]+ steps", line) for line in status)
+    assert any(re.search(r"training stop_ppo \(seed \d, layout \d+\): [\d,]+/[\d,]+ decisions", line)
+               for line in status)
     text = out.read_text()
     assert "learning curves" in text and "stop-choosing PPO @" in text and "SAC @" in text
     with ResultStore(tmp_path / "s.sqlite", readonly=True) as store:
