@@ -294,11 +294,14 @@ def _budget_units(experiment: Any) -> str:
     """What the budgets of a learning curve's algorithms count, for its x axis: steps (deep
     RL), decisions (a stop-choosing agent: a stop and its dwell, several steps) or episodes
     (tabular RL, whose budgets set ``train_episodes``); the most common first, the others
-    named by algorithm."""
+    named by their algorithm's label, as the tables name them."""
+    from swiptopt.benchmark.algorithms import labels
+
+    names = labels()
     units = {name: experiment.budget_unit(name) for name in experiment.budgets}
     counts = Counter(units.values())
     main = max(counts, key=lambda unit: (counts[unit], unit == "steps"))
-    others = [f"{name}: {unit}" for name, unit in units.items() if unit != main]
+    others = [f"{names.get(name, name)}: {unit}" for name, unit in units.items() if unit != main]
     return "; ".join([main, *others])
 
 

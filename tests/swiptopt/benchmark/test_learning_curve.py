@@ -77,7 +77,7 @@ def test_a_tabular_learners_budgets_set_its_training_episodes():
     assert plots._budget_units(e) == "episodes"
     mixed = curve(algorithms={**q, "ppo": TINY_PPO, "stop_ppo": {}},
                   budgets={"q_learning": [64], "ppo": [64], "stop_ppo": [64]})
-    assert plots._budget_units(mixed) == "steps; q_learning: episodes; stop_ppo: decisions"
+    assert plots._budget_units(mixed) == "steps; Q-learning: episodes; stop-choosing PPO: decisions"
     with pytest.raises(ConfigError, match="budgets.q_learning and train_episodes set elsewhere"):
         curve(algorithms={"q_learning": {"train_episodes": 10}}, budgets={"q_learning": [64]})
 
@@ -386,9 +386,27 @@ _GRID_TABULAR_ROWS = {
     "SARSA": "80,000: 8.64 ± 1.21; 160,000: 9.03 ± 1.21 | yes | 5,000 | 0.42× [0.35–0.49] 0/6 (MILP)"}
 _HARBOUR_STOP_ROWS = {
     "stop-choosing PPO": "262,144: 37.27 ± 1.58 | yes | 32,768 | 1.00× [1.00–1.00] 0/6 (OMPL tour)"}
+#: The built-in curves across layouts (both in benchmarks/stores/learning-curve-across.sqlite):
+#: the budgets ``compare`` trains at come from them.
+_ACROSS_ROWS = {
+    "PPO": "1,048,576: 15.32 ± 1.29; 2,097,152: 15.47 ± 1.29 | yes | 524,288 | 0.73× [0.69–0.77] 0/6 (MILP)",
+    "DQN": "2,097,152: 18.70 ± 1.20; 4,194,304: 18.01 ± 1.72 | yes | 524,288 | 0.85× [0.79–0.91] 0/6 (MILP)",
+    "stop-choosing PPO": "262,144: 19.11 ± 1.11; 524,288: 19.14 ± 1.35 | yes | 65,536 | 0.90× [0.86–0.93] 0/6 (MILP)"}
+_HARBOUR_ACROSS_ROWS = {
+    "PPO": _HARBOUR_ACROSS_PPO_ROWS["PPO"], "SAC": _HARBOUR_ACROSS_SAC_ROWS["SAC"],
+    "stop-choosing PPO": "262,144: 35.70 ± 1.60; 524,288: 36.32 ± 1.73 | yes | 131,072 | "
+                         "0.98× [0.97–0.99] 0/8 (OMPL tour)"}
+#: The store of each experiment whose store is not named after it.
+_STORE_OF = {"learning-curve-across": "learning-curve-across", "learning-curve-harbour-across": "learning-curve-across"}
+#: Experiment files whose rows the docs quote as the built-in's (the same tasks, whose
+#: results were copied into the built-in's store): their rows, renamed, are the built-in's.
+_QUOTED_AS = {"learning-curve-harbour-across-ppo": "learning-curve-harbour-across",
+              "learning-curve-harbour-across-sac": "learning-curve-harbour-across"}
 
 
-@pytest.mark.parametrize(("name", "expected"), [("learning-curve-grid-ppo-dqn", _PPO_DQN_ROWS),
+@pytest.mark.parametrize(("name", "expected"), [("learning-curve-across", _ACROSS_ROWS),
+                                                ("learning-curve-harbour-across", _HARBOUR_ACROSS_ROWS),
+                                                ("learning-curve-grid-ppo-dqn", _PPO_DQN_ROWS),
                                                 ("learning-curve-grid-stop-ppo", _STOP_ROWS),
                                                 ("learning-curve-grid-tabular", _GRID_TABULAR_ROWS),
                                                 ("learning-curve-harbour-stop-ppo", _HARBOUR_STOP_ROWS),
@@ -412,23 +430,46 @@ _HARBOUR_STOP_ROWS = {
                                                 ("learning-curve-fleet-optimum-q-learning-two",
                                                  _FLEET_OPTIMUM_Q_TWO_ROWS)])
 def test_a_stored_curve_run_prints_the_curve_docs_quote(tmp_path, name, expected):
-    """benchmarks/stores/NAME.sqlite is the store of the run that docs/results.md (the
-    fleet's: docs/fleet.md) and the README quote: its table, printed from the stored data
-    alone, carries their numbers (a page that misquotes the run fails here)."""
+    """benchmarks/stores/NAME.sqlite (or the store :data:`_STORE_OF` names) is the store of
+    the run that docs/results.md (the fleet's: docs/fleet.md) and the README quote: its
+    table, printed from the stored data alone, carries their numbers (a page that misquotes
+    the run fails here; a run the docs quote under the built-in's name, :data:`_QUOTED_AS`,
+    has the built-in's rows there)."""
     from pathlib import Path
 
     root = Path(__file__).parents[3]
     out = tmp_path / "curve.md"
-    assert main(["table", str(root / "benchmarks" / "stores" / f"{name}.sqlite"),
+    assert main(["table", str(root / "benchmarks" / "stores" / f"{_STORE_OF.get(name, name)}.sqlite"),
                  "--experiment", name, "--format", "markdown", "--output", str(out)]) == 0
     rows = {line.split(" | ")[1]: line for line in out.read_text().splitlines() if line.startswith(f"| {name} |")}
     docs = (root / "docs" / ("fleet.md" if "fleet" in name else "results.md")).read_text()
     assert set(rows) == set(expected)
     for algorithm, fragment in expected.items():
-        assert rows[algorithm] in docs
+        assert rows[algorithm].replace(f"| {name} |", f"| {_QUOTED_AS.get(name, name)} |") in docs
         assert fragment in rows[algorithm]
 
 
+@pytest.mark.parametrize(("suite", "name"), [("compare", "learning-curve-across"),
+                                             ("harbour", "learning-curve-harbour-across")])
+def test_the_suites_train_deep_rl_where_its_shipped_curve_is_flat(suite, name):
+    """Each suite's deep-RL contenders are the tasks of the last budget of their curve across
+    the suite's layouts (the same models), and the shipped store of that curve holds every
+    budget of it, flat at its end: a budget moved in ``ACROSS_BUDGETS`` without running the
+    curve to it, or a curve still rising where the suite trains, fails here."""
+    from pathlib import Path
+
+    experiments = builtin_experiments()
+    curve, suite_tasks = experiments[name], experiments[suite].tasks()
+    assert set(curve.budgets) == {t.algorithm for t in suite_tasks if "timesteps" in t.settings}
+    learners = {t.key for t in suite_tasks if t.algorithm in curve.budgets}
+    last = {t.key for t in curve.tasks() if t.algorithm in curve.budgets and t.budget == curve.budgets[t.algorithm][-1]}
+    assert learners == last and len(learners) == 3 * len(curve.budgets) * curve.layouts
+    store = Path(__file__).parents[3] / "benchmarks" / "stores" / f"{_STORE_OF[name]}.sqlite"
+    with ResultStore(store, readonly=True) as s:
+        rows = tables.curve_rows(curve, s)
+    assert {r.algorithm for r in rows} == set(curve.budgets)
+    for r in rows:
+        assert all(r.complete) and r.flat, (r.algorithm, r.returns[-2:])
 def test_each_algorithm_has_one_colour_in_every_learning_curve_panel():
     """PPO is drawn in one colour on the grid's panel, the harbour's and the fleet's (its
     fleet counterpart too), the planners beside the learners in others, and an algorithm
