@@ -569,17 +569,16 @@ def _dask(stages: list[list[list[dict[str, Any]]]], client: Any, modules: tuple[
 # ------------------------------------------------------------------------ models
 
 
-def _models_of(tasks: list[Task], models_dir: str,
-               pretrained: tuple[str, ...] = ()) -> Iterator[tuple[Task, Any, Any, Path]]:
-    """Each model the built-in algorithms' tasks keep (their ``trained_model``), once: the
-    first task that names it, its training configuration and scenario, and its path in
-    ``models_dir`` (a plugin's code runs only in its tasks, so its models are not named)."""
+def _task_models(tasks: list[Task], models_dir: str,
+                 pretrained: tuple[str, ...] = ()) -> Iterator[tuple[Task, Any, Any, Path]]:
+    """Each task of a built-in algorithm that keeps a model (its ``trained_model``), with
+    that model's training configuration and scenario and its path in ``models_dir`` (a
+    plugin's code runs only in its tasks, so its models are not named)."""
     from rl.deep import model_path
     from swiptopt.benchmark.algorithms import ALGORITHMS, BuildContext
     from swiptopt.benchmark.experiment import SEEDS_PER_LAYOUT
     from swiptopt.scenario import Scenario
 
-    seen: set[Path] = set()
     for t in tasks:
         algorithm = ALGORITHMS.get(t.algorithm)
         if algorithm is None or t.plugin or algorithm.trained_model is None:
@@ -588,10 +587,33 @@ def _models_of(tasks: list[Task], models_dir: str,
         context = BuildContext(Scenario.from_dict(t.scenario), t.seed % SEEDS_PER_LAYOUT, training, models_dir,
                                t.world, (), tuple(pretrained))
         config, scenario = algorithm.trained_model(t.settings, t.seed, context)
-        path = model_path(Path(models_dir), config, scenario)
+        yield t, config, scenario, model_path(Path(models_dir), config, scenario)
+
+
+def _models_of(tasks: list[Task], models_dir: str,
+               pretrained: tuple[str, ...] = ()) -> Iterator[tuple[Task, Any, Any, Path]]:
+    """Each model the built-in algorithms' tasks keep, once (:func:`_task_models`, the first
+    task that names it)."""
+    seen: set[Path] = set()
+    for t, config, scenario, path in _task_models(tasks, models_dir, pretrained):
         if path not in seen:
             seen.add(path)
             yield t, config, scenario, path
+
+
+def _with_models(tasks: list[Task], models_dir: str, pretrained: tuple[str, ...] = ()) -> set[str]:
+    """The keys of the tasks whose model is already kept: in ``models_dir`` or vouched for in
+    ``pretrained``."""
+    from rl.deep import find_model
+
+    found: dict[Path, bool] = {}
+    keys = set()
+    for t, config, scenario, path in _task_models(tasks, models_dir, pretrained):
+        if path not in found:
+            found[path] = find_model([models_dir, *pretrained], config, scenario)[0] is not None
+        if found[path]:
+            keys.add(t.key)
+    return keys
 
 
 def check_models_dir(tasks: list[Task], models_dir: str, pretrained: tuple[str, ...] = ()) -> None:
@@ -672,9 +694,11 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
              pretrained: tuple[str, ...] = (), keep_state: bool = False) -> list[list[list[dict[str, Any]]]]:
     """The tasks as stages of batches of task dicts, each stage run to its end before the
     next starts. First, one task per training lineage (:func:`_lineage_of`), its longest
-    budget, each alone and the longest first (so the workers train different models at once
-    and the longest work starts first), told to save its model at the lineage's other
-    budgets; beside them every task that trains nothing. Then the lineages' other tasks,
+    budget whose model is not kept yet (in ``models_dir`` or ``pretrained``: a shipped
+    model of the last budget is loaded, not a reason to train each shorter budget apart),
+    each alone and the longest first (so the workers train different models at once and the
+    longest work starts first), told to save its model at the lineage's other budgets that
+    lack one; beside them every task that trains nothing. Then the lineages' other tasks,
     which load those models. Batches hold at most 4 tasks (at least ~8 per worker for load
     balance) so a killed run loses little. With ``keep_state`` each lineage's trainer keeps
     its training state at its end (:data:`KEEP_STATE`)."""
@@ -689,15 +713,21 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
     extra: dict[str, Any] = {MODELS_DIR: models_dir} if models_dir is not None else {}
     if pretrained:
         extra[PRETRAINED] = list(pretrained)
+    kept = _with_models([t for m in lineages.values() for t in m], models_dir, pretrained) if models_dir else set()
     trainers: list[dict[str, Any]] = []
     followers: list[Task] = []
     for members in lineages.values():
         members = sorted(members, key=lambda t: -int(t.settings.get("timesteps", 0)))
-        longest = int(members[0].settings.get("timesteps", 0))
-        budgets = sorted({int(t.settings.get("timesteps", 0)) for t in members[1:]} - {longest})
+        missing = [t for t in members if t.key not in kept]
+        if not missing:  # every model of the lineage is kept: its tasks only load them
+            followers += members
+            continue
+        lead = missing[0]
+        longest = int(lead.settings.get("timesteps", 0))
+        budgets = sorted({int(t.settings.get("timesteps", 0)) for t in missing[1:]} - {longest})
         keep = {KEEP_STATE: True} if keep_state else {}
-        trainers.append({**members[0].to_dict(), **extra, CHECKPOINTS: budgets, **keep})
-        followers += members[1:]
+        trainers.append({**lead.to_dict(), **extra, CHECKPOINTS: budgets, **keep})
+        followers += [t for t in members if t is not lead]
     trainers.sort(key=lambda d: -int(d["settings"].get("timesteps", 0)))
 
     def small(group: list[Task]) -> list[list[dict[str, Any]]]:

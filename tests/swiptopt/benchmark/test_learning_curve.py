@@ -169,6 +169,32 @@ def test_a_curve_trains_once_per_lineage_and_reports_its_plateau(tmp_path):
     assert len(kept) == len(lines) - 1
 
 
+def test_a_lineage_whose_last_model_is_kept_trains_once_to_the_budget_before(tmp_path):
+    """A lineage whose longest budget's model is already kept (here trained by a run of that
+    budget alone beside the store; in practice a shipped model) loads it and trains once, to
+    its longest budget without a model, saving the shorter ones on its way, instead of
+    training every shorter budget apart: the same results as a run that trains everything."""
+    e = curve()
+    alone = curve(name="alone", budgets={}, algorithms={"ppo": {**TINY_PPO, "timesteps": 256}, "greedy": {}})
+    with ResultStore(tmp_path / "kept" / "first.sqlite") as first:
+        assert execute(alone, first, workers=1).failed == 0
+    stages = _batches(e.tasks(), workers=2, models_dir=str(tmp_path / "kept" / "models"))
+    trainers = [b[0] for b in stages[0] if "checkpoints" in b[0]]
+    assert len(trainers) == 4 and all(t["settings"]["timesteps"] == 128 and t["checkpoints"] == [64] for t in trainers)
+    assert sum(len(b) for b in stages[1]) == 8  # the 64-step and the kept 256-step tasks load models
+    results = {}
+    for name in ("kept", "fresh"):
+        with ResultStore(tmp_path / name / "s.sqlite") as store:
+            assert execute(e, store, workers=2).failed == 0
+            results[name] = store.get({t.key for t in e.tasks()})
+    assert results["kept"].keys() == results["fresh"].keys() and len(results["kept"]) == 14
+    for key, result in results["kept"].items():
+        assert result["records"] == results["fresh"][key]["records"]
+    trained = [r["task"]["settings"]["timesteps"] for r in results["kept"].values()
+               if r["task"]["algorithm"] == "ppo" and not r["extra"]["model_loaded"]]
+    assert trained == [128] * 4
+
+
 def test_a_checkpoint_evaluates_like_the_run_of_its_length(tmp_path):
     """A budget's row is the same whether its model came from a longer run's checkpoint or
     from a run of that length alone."""
