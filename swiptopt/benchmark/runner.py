@@ -698,10 +698,11 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
     model of the last budget is loaded, not a reason to train each shorter budget apart),
     each alone and the longest first (so the workers train different models at once and the
     longest work starts first), told to save its model at the lineage's other budgets that
-    lack one; beside them every task that trains nothing. Then the lineages' other tasks,
-    which load those models. Batches hold at most 4 tasks (at least ~8 per worker for load
-    balance) so a killed run loses little. With ``keep_state`` each lineage's trainer keeps
-    its training state at its end (:data:`KEEP_STATE`)."""
+    lack one; beside them every task that trains nothing (a kept model's too). Then the
+    lineages' other tasks, which load the models their trainers saved. Batches hold at most
+    4 tasks (at least ~8 per worker for load balance) so a killed run loses little. With
+    ``keep_state`` each lineage's trainer keeps its training state at its end
+    (:data:`KEEP_STATE`)."""
     lineages: dict[tuple[Any, ...], list[Task]] = {}
     plain: list[Task] = []
     for t in tasks:
@@ -719,15 +720,15 @@ def _batches(tasks: list[Task], workers: int, models_dir: str | None = None,
     for members in lineages.values():
         members = sorted(members, key=lambda t: -int(t.settings.get("timesteps", 0)))
         missing = [t for t in members if t.key not in kept]
-        if not missing:  # every model of the lineage is kept: its tasks only load them
-            followers += members
+        plain += [t for t in members if t.key in kept]  # they load a kept model: they train nothing
+        if not missing:
             continue
         lead = missing[0]
         longest = int(lead.settings.get("timesteps", 0))
         budgets = sorted({int(t.settings.get("timesteps", 0)) for t in missing[1:]} - {longest})
         keep = {KEEP_STATE: True} if keep_state else {}
         trainers.append({**lead.to_dict(), **extra, CHECKPOINTS: budgets, **keep})
-        followers += [t for t in members if t is not lead]
+        followers += missing[1:]
     trainers.sort(key=lambda d: -int(d["settings"].get("timesteps", 0)))
 
     def small(group: list[Task]) -> list[list[dict[str, Any]]]:

@@ -181,7 +181,10 @@ def test_a_lineage_whose_last_model_is_kept_trains_once_to_the_budget_before(tmp
     stages = _batches(e.tasks(), workers=2, models_dir=str(tmp_path / "kept" / "models"))
     trainers = [b[0] for b in stages[0] if "checkpoints" in b[0]]
     assert len(trainers) == 4 and all(t["settings"]["timesteps"] == 128 and t["checkpoints"] == [64] for t in trainers)
-    assert sum(len(b) for b in stages[1]) == 8  # the 64-step and the kept 256-step tasks load models
+    # the kept 256-step models' tasks run beside the trainers, the 64-step ones after them
+    loading = [[d["settings"]["timesteps"] for b in stage for d in b
+                if d["algorithm"] == "ppo" and "checkpoints" not in d] for stage in stages]
+    assert loading == [[256] * 4, [64] * 4]
     results = {}
     for name in ("kept", "fresh"):
         with ResultStore(tmp_path / name / "s.sqlite") as store:
