@@ -499,6 +499,39 @@ def test_the_suites_train_deep_rl_where_its_shipped_curve_is_flat(suite, name):
     assert {r.algorithm for r in rows} == set(curve.budgets)
     for r in rows:
         assert all(r.complete) and r.flat, (r.algorithm, r.returns[-2:])
+def test_the_per_layout_sac_curve_run_again_from_the_start_gives_the_shipped_results():
+    """benchmarks/stores/in-progress/ holds the per-layout SAC curve going on to 2,097,152
+    steps, run from an empty store: each lineage trains from the start in one run, where the
+    shipped store's 1,048,576-step models went on from the states its 524,288-step trainings
+    kept (``--keep-state``). Every result the two stores share is the same, episode for
+    episode; the longer file is the shipped one with one more budget (the same tasks and 18
+    more), and its store holds only its tasks, each lineage that reached 2,097,152 steps with
+    every budget before."""
+    from pathlib import Path
+
+    root = Path(__file__).parents[3] / "benchmarks"
+    shipped = {t.key: t for t in Experiment.from_toml(root / "learning-curve-harbour-sac.toml").tasks()}
+    longer = {t.key: t for t in Experiment.from_toml(root / "stores" / "in-progress" /
+                                                      "learning-curve-harbour-sac.toml").tasks()}
+    added = {k: t for k, t in longer.items() if k not in shipped}
+    assert set(shipped) < set(longer) and len(added) == 18
+    assert {t.budget for t in added.values()} == {2_097_152}
+    with ResultStore(root / "stores" / "in-progress" / "learning-curve-harbour-sac.sqlite", readonly=True) as s:
+        again = s.get(s.keys())
+        assert not s.failures()
+    with ResultStore(root / "stores" / "learning-curve-harbour-sac.sqlite", readonly=True) as s:
+        before = s.get(set(again) & s.keys())
+    assert set(again) <= set(longer)
+    finished = [added[k] for k in again if k in added]
+    assert len(finished) >= 2
+    for t in finished:
+        lineage = [k for k, u in shipped.items() if u.algorithm == "sac" and u.seed == t.seed]  # its layout too
+        assert len(lineage) == 6 and set(lineage) <= set(before)
+    assert len(before) >= 6 * len(finished)
+    for key, result in before.items():
+        assert again[key]["records"] == result["records"], shipped[key].row
+
+
 def test_each_algorithm_has_one_colour_in_every_learning_curve_panel():
     """PPO is drawn in one colour on the grid's panel, the harbour's and the fleet's (its
     fleet counterpart too), the planners beside the learners in others, and an algorithm
