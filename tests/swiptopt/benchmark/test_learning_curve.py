@@ -499,6 +499,8 @@ def test_the_suites_train_deep_rl_where_its_shipped_curve_is_flat(suite, name):
     assert {r.algorithm for r in rows} == set(curve.budgets)
     for r in rows:
         assert all(r.complete) and r.flat, (r.algorithm, r.returns[-2:])
+
+
 def test_the_per_layout_sac_curve_run_again_from_the_start_gives_the_shipped_results():
     """benchmarks/stores/in-progress/ holds the per-layout SAC curve going on to 2,097,152
     steps, run from an empty store: each lineage trains from the start in one run, where the
@@ -527,7 +529,6 @@ def test_the_per_layout_sac_curve_run_again_from_the_start_gives_the_shipped_res
     for t in finished:
         lineage = [k for k, u in shipped.items() if u.algorithm == "sac" and u.seed == t.seed]  # its layout too
         assert len(lineage) == 6 and set(lineage) <= set(before)
-    assert len(before) >= 6 * len(finished)
     for key, result in before.items():
         assert again[key]["records"] == result["records"], shipped[key].row
 
