@@ -839,9 +839,9 @@ def learning_curves() -> list[Experiment]:
             algorithms={"ppo": per, "sac": per, "stop_ppo": per, **harbour_planners},
             # PPO per layout one doubling further: its curve still rose at 1,048,576 steps
             # (8.13 -> 9.21) and is flat at 2,097,152 (9.82, docs/results.md); SAC per layout
-            # two doublings further (4.00 at 262,144, 7.74 at 524,288, 12.17 at 1,048,576, still
-            # rising); the shorter budgets' tasks are unchanged
-            budgets={"ppo": _doublings_more(_GRID_CURVE), "sac": _doublings_more(_SAC_CURVE, 2),
+            # three doublings further (4.00 at 262,144, 7.74 at 524,288, 12.17 at 1,048,576, 15.57
+            # at 2,097,152, still rising); the shorter budgets' tasks are unchanged
+            budgets={"ppo": _doublings_more(_GRID_CURVE), "sac": _doublings_more(_SAC_CURVE, 3),
                      "stop_ppo": list(_STOP_CURVE)},
             layouts=CURVE_LAYOUTS, baseline="ompl_tour", **common,
         ),
